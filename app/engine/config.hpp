@@ -1,0 +1,61 @@
+// Every tunable of the sequence engine, in metres and seconds (never frames).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace markloop {
+
+struct TrackerConfig {
+  // An observation joins an active track whose mean position is this close.
+  double association_radius_m = 1.5;
+  // A track that has not been seen for this long has left view: commit it.
+  double commit_after_s = 0.5;
+  // Tracks with fewer observations are dropped as spurious at commit.
+  unsigned min_observations = 2;
+  // Committed landmarks wait until the car is this far past them before they
+  // are chained, so that landmarks enter sequences in along-track order.
+  double release_lag_m = 15.0;
+};
+
+struct ChainConfig {
+  unsigned k = 4;  // sequence length
+  // Landmarks whose along-track stations lie within this distance of the
+  // first landmark of a row form one row (markings side by side on lanes).
+  double row_width_m = 1.5;
+  // A gap longer than this between rows breaks the chain.
+  double max_link_m = 200.0;
+};
+
+struct MatchConfig {
+  // Successive-landmark distances match when |d1 - d2| <= abs + rel * max(d1, d2).
+  double distance_tolerance_abs_m = 0.5;
+  double distance_tolerance_rel = 0.02;
+  // The match must lie this far back along the drive (both must hold).
+  double min_separation_m = 100.0;
+  double min_separation_s = 10.0;
+  // Rigid 2-D alignment of the k landmark pairs: largest accepted RMS residual.
+  double max_residual_m = 0.5;
+  // Index bins are this many tolerances wide; wider bins mean fewer probes.
+  double index_bin_tolerances = 4.0;
+  // Bound on candidates examined per query, so latency stays bounded even on
+  // pathologically repetitive roads.
+  unsigned max_candidates_per_query = 64;
+};
+
+struct DatabaseConfig {
+  std::size_t landmark_capacity = std::size_t{1} << 18;
+  std::size_t sequence_capacity = std::size_t{1} << 20;
+};
+
+struct EngineConfig {
+  TrackerConfig tracker;
+  ChainConfig chain;
+  MatchConfig match;
+  DatabaseConfig database;
+};
+
+// Returns nullptr when the configuration is usable, else what is wrong.
+const char* validate(const EngineConfig& config);
+
+}  // namespace markloop

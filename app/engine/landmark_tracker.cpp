@@ -1,0 +1,100 @@
+#include "engine/landmark_tracker.hpp"
+
+#include <cmath>
+
+namespace markloop {
+
+void LandmarkTracker::observe(const FrameInput& frame, double odometer,
+                              std::span<const Observation> observations) {
+  for (Track& track : tracks_) track.updated = false;
+  const double radius_sq = config_.association_radius_m * config_.association_radius_m;
+
+  for (const Observation& obs : observations) {
+    ++counters_.observations;
+    if (!std::isfinite(obs.x) || !std::isfinite(obs.y)) {
+      ++counters_.observations_rejected;
+      continue;
+    }
+    Track* best = nullptr;
+    double best_sq = radius_sq;
+    for (Track& track : tracks_) {
+      if (track.updated) continue;
+      const double dx = track.sum_x / track.count - obs.x;
+      const double dy = track.sum_y / track.count - obs.y;
+      const double d_sq = dx * dx + dy * dy;
+      if (d_sq <= best_sq) {
+        best_sq = d_sq;
+        best = &track;
+      }
+    }
+    if (best == nullptr) {
+      if (!tracks_.push_back(Track{})) {
+        ++counters_.observations_dropped;
+        continue;
+      }
+      ++counters_.tracks_started;
+      best = &tracks_.back();
+      best->first_frame = frame.frame;
+    }
+    Track& track = *best;
+    if (track.count == UINT16_MAX) continue;  // a marking seen for hours: enough
+    track.sum_x += obs.x;
+    track.sum_y += obs.y;
+    ++track.count;
+    track.last_frame = frame.frame;
+    track.t_last = frame.t;
+    track.odometer_last = odometer;
+    track.has_pose = frame.has_pose;
+    track.car = frame.pose;
+    track.updated = true;
+
+    bool voted = false;
+    for (Vote& vote : track.votes) {
+      if (vote.label == obs.label) {
+        ++vote.count;
+        voted = true;
+        break;
+      }
+    }
+    // More distinct labels than vote slots: the extras cannot win anyway.
+    if (!voted) track.votes.push_back(Vote{obs.label, 1});
+  }
+}
+
+bool LandmarkTracker::to_landmark(const Track& track, Landmark& out) {
+  if (track.count < config_.min_observations) {
+    ++counters_.tracks_spurious;
+    return false;
+  }
+  const Vote* winner = nullptr;
+  for (const Vote& vote : track.votes)
+    if (winner == nullptr || vote.count > winner->count) winner = &vote;
+  if (winner == nullptr || 2u * winner->count < track.count) {
+    ++counters_.tracks_label_ambiguous;
+    return false;
+  }
+  out = Landmark{};
+  out.label = winner->label;
+  out.observations = track.count;
+  out.first_frame = track.first_frame;
+  out.last_frame = track.last_frame;
+  out.x = static_cast<float>(track.sum_x / track.count);
+  out.y = static_cast<float>(track.sum_y / track.count);
+  out.t = track.t_last;
+  out.has_car_pose = track.has_pose;
+  if (track.has_pose) {
+    out.car_x = static_cast<float>(track.car.x);
+    out.car_y = static_cast<float>(track.car.y);
+    out.car_yaw = static_cast<float>(track.car.yaw);
+    // Along-track station of the marking itself: where the car was when it
+    // last saw it, plus how far ahead of the car it lies. This does not
+    // depend on which frame happened to see it last.
+    const double ahead = (out.x - track.car.x) * std::cos(track.car.yaw) +
+                         (out.y - track.car.y) * std::sin(track.car.yaw);
+    out.station = track.odometer_last + ahead;
+  }
+  ++counters_.landmarks_committed;
+  return true;
+}
+
+}  // namespace markloop

@@ -1,0 +1,93 @@
+// Fuses the per-frame observations of one physical marking into a landmark.
+//
+// An observation joins the nearest active track within the association
+// radius that has not been updated in this frame (so markings side by side in
+// one frame stay separate); the label is decided by vote. A track unseen for
+// `commit_after_s` has left view and is committed, unless it is spurious (too
+// few observations) or its vote has no majority.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "engine/config.hpp"
+#include "engine/fixed_vector.hpp"
+#include "engine/types.hpp"
+
+namespace markloop {
+
+struct TrackerCounters {
+  std::uint64_t observations = 0;
+  std::uint64_t observations_rejected = 0;  // non-finite position
+  std::uint64_t observations_dropped = 0;   // no free track
+  std::uint64_t tracks_started = 0;
+  std::uint64_t landmarks_committed = 0;
+  std::uint64_t tracks_spurious = 0;
+  std::uint64_t tracks_label_ambiguous = 0;
+};
+
+class LandmarkTracker {
+ public:
+  static constexpr std::size_t kMaxTracks = 64;
+  static constexpr std::size_t kMaxVotes = 4;
+
+  explicit LandmarkTracker(const TrackerConfig& config) : config_(config) {}
+
+  // `odometer` is the distance travelled so far, meaningful when the frame
+  // has a pose.
+  void observe(const FrameInput& frame, double odometer, std::span<const Observation> observations);
+
+  // Moves landmarks whose tracks left view (or every track, when `all`) into
+  // `out`, oldest sighting first. Returns false if `out` ran out of room; the
+  // remaining tracks are then committed on a later call.
+  template <std::size_t N>
+  bool commit(double now, bool all, FixedVector<Landmark, N>& out);
+
+  std::size_t active() const { return tracks_.size(); }
+  const TrackerCounters& counters() const { return counters_; }
+  void clear() { tracks_.clear(); }
+
+ private:
+  struct Vote {
+    Label label;
+    std::uint16_t count;
+  };
+  struct Track {
+    double sum_x = 0.0;
+    double sum_y = 0.0;
+    std::uint16_t count = 0;
+    FrameIndex first_frame = 0;
+    FrameIndex last_frame = 0;
+    double t_last = 0.0;
+    double odometer_last = 0.0;
+    bool has_pose = false;
+    Pose2 car{};
+    bool updated = false;
+    FixedVector<Vote, kMaxVotes> votes;
+  };
+
+  bool to_landmark(const Track& track, Landmark& out);
+
+  TrackerConfig config_;
+  FixedVector<Track, kMaxTracks> tracks_;
+  TrackerCounters counters_;
+};
+
+template <std::size_t N>
+bool LandmarkTracker::commit(double now, bool all, FixedVector<Landmark, N>& out) {
+  for (;;) {
+    // Oldest sighting first, so landmarks leave in a stable order.
+    std::size_t oldest = tracks_.size();
+    for (std::size_t i = 0; i < tracks_.size(); ++i) {
+      if (!all && now - tracks_[i].t_last <= config_.commit_after_s) continue;
+      if (oldest == tracks_.size() || tracks_[i].t_last < tracks_[oldest].t_last) oldest = i;
+    }
+    if (oldest == tracks_.size()) return true;
+    if (out.full()) return false;
+    Landmark landmark;
+    if (to_landmark(tracks_[oldest], landmark)) out.push_back(landmark);
+    tracks_.erase_at(oldest);
+  }
+}
+
+}  // namespace markloop

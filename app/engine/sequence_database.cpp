@@ -1,0 +1,232 @@
+#include "engine/sequence_database.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cassert>
+#include <cmath>
+
+namespace markloop {
+
+namespace {
+
+std::size_t power_of_two_at_least(std::size_t n) { return std::bit_ceil(std::max<std::size_t>(n, 2)); }
+
+std::uint64_t mix(std::uint64_t h) {
+  // splitmix64 finaliser: good avalanche, cheap, identical on every target.
+  h ^= h >> 30;
+  h *= 0xBF58476D1CE4E5B9ull;
+  h ^= h >> 27;
+  h *= 0x94D049BB133111EBull;
+  h ^= h >> 31;
+  return h;
+}
+
+}  // namespace
+
+DistanceQuantiser::DistanceQuantiser(const MatchConfig& config)
+    : abs_m_(config.distance_tolerance_abs_m),
+      rel_(config.distance_tolerance_rel),
+      bin_width_(config.index_bin_tolerances) {}
+
+// g(d) grows by about one unit per tolerance: g'(d) = 1 / (abs + rel * d).
+std::uint32_t DistanceQuantiser::bin(double distance) const {
+  const double d = std::max(distance, 0.0);
+  const double g = rel_ > 0.0 ? std::log1p(rel_ * d / abs_m_) / rel_ : d / abs_m_;
+  return static_cast<std::uint32_t>(std::min(g / bin_width_, 4.0e9));
+}
+
+void DistanceQuantiser::bin_range(double distance, std::uint32_t& first,
+                                  std::uint32_t& last) const {
+  // All d2 with |d - d2| <= abs + rel * max(d, d2).
+  const double low = distance * (1.0 - rel_) - abs_m_;
+  const double high = (distance + abs_m_) / (1.0 - rel_);
+  first = bin(low);
+  last = bin(high);
+}
+
+double DistanceQuantiser::tolerance(double a, double b) const {
+  return abs_m_ + rel_ * std::max(a, b);
+}
+
+bool DistanceQuantiser::within_tolerance(double a, double b) const {
+  return std::abs(a - b) <= tolerance(a, b);
+}
+
+SequenceDatabase::SequenceDatabase(const DatabaseConfig& config, const MatchConfig& match,
+                                   unsigned k)
+    : k_(k), quantiser_(match) {
+  assert(k >= 2 && k <= kMaxSequenceLength);
+  const std::size_t landmark_capacity = power_of_two_at_least(config.landmark_capacity);
+  const std::size_t sequence_capacity = power_of_two_at_least(config.sequence_capacity);
+  landmarks_.resize(landmark_capacity);
+  landmark_mask_ = landmark_capacity - 1;
+  sequence_ids_.resize(sequence_capacity * k_);
+  sequence_tag_.resize(sequence_capacity);
+  sequence_older_.resize(sequence_capacity);
+  sequence_newer_.resize(sequence_capacity);
+  sequence_mask_ = sequence_capacity - 1;
+  // Load factor at most 1/2 keeps linear probes short.
+  const std::size_t slot_count = power_of_two_at_least(2 * sequence_capacity);
+  assert(slot_count <= (std::size_t{1} << 32));
+  slots_.resize(slot_count);
+  slot_mask_ = static_cast<std::uint32_t>(slot_count - 1);
+}
+
+void SequenceDatabase::clear() {
+  while (oldest_sequence_ < sequences_added_) evict_oldest_sequence();
+  oldest_landmark_id_ = next_landmark_id_;
+}
+
+LandmarkId SequenceDatabase::add_landmark(const Landmark& landmark) {
+  if (next_landmark_id_ - oldest_landmark_id_ > landmark_mask_) {
+    const LandmarkId evicted = oldest_landmark_id_++;
+    ++landmarks_evicted_;
+    // Sequences are stored in creation order, which follows their first
+    // landmark closely; a straggler whose landmark is gone is skipped by
+    // sequence_live() until its own turn to be evicted.
+    while (oldest_sequence_ < sequences_added_ &&
+           sequence_ids_[(oldest_sequence_ & sequence_mask_) * k_] <= evicted)
+      evict_oldest_sequence();
+  }
+  const LandmarkId id = next_landmark_id_++;
+  Landmark& stored = landmarks_[id & landmark_mask_];
+  stored = landmark;
+  stored.id = id;
+  return id;
+}
+
+const Landmark* SequenceDatabase::landmark(LandmarkId id) const {
+  if (id < oldest_landmark_id_ || id >= next_landmark_id_) return nullptr;
+  return &landmarks_[id & landmark_mask_];
+}
+
+bool SequenceDatabase::shape_of(std::span<const LandmarkId> ids, SequenceShape& shape) const {
+  if (ids.size() != k_) return false;
+  shape.k = k_;
+  const Landmark* previous = nullptr;
+  for (unsigned i = 0; i < k_; ++i) {
+    const Landmark* current = landmark(ids[i]);
+    if (current == nullptr) return false;
+    shape.labels[i] = current->label;
+    shape.distances[i] =
+        previous == nullptr ? 0.0f : std::hypot(current->x - previous->x, current->y - previous->y);
+    previous = current;
+  }
+  return true;
+}
+
+std::uint32_t SequenceDatabase::key_tag(const SequenceShape& shape,
+                                        std::span<const std::uint32_t> bins) const {
+  std::uint64_t h = 0x6D61726B6C6F6F70ull;  // "markloop"
+  for (unsigned i = 0; i < k_; ++i) h = mix(h ^ shape.labels[i]);
+  for (const std::uint32_t b : bins) h = mix(h ^ (std::uint64_t{b} << 16));
+  return static_cast<std::uint32_t>(h >> 32);
+}
+
+std::uint32_t SequenceDatabase::find_slot(std::uint32_t tag) const {
+  for (std::uint32_t i = tag & slot_mask_;; i = (i + 1) & slot_mask_) {
+    if (slots_[i].head == kNone) return kNone;
+    if (slots_[i].tag == tag) return i;
+  }
+}
+
+void SequenceDatabase::remove_slot(std::uint32_t hole) {
+  // Backward-shift deletion: pull later entries of the probe run into the hole
+  // when their home slot allows it, so lookups never need tombstones.
+  for (std::uint32_t j = (hole + 1) & slot_mask_; slots_[j].head != kNone;
+       j = (j + 1) & slot_mask_) {
+    const std::uint32_t home = slots_[j].tag & slot_mask_;
+    const bool movable = hole <= j ? (home <= hole || home > j) : (home <= hole && home > j);
+    if (movable) {
+      slots_[hole] = slots_[j];
+      hole = j;
+    }
+  }
+  slots_[hole] = Slot{};
+  --slots_used_;
+}
+
+void SequenceDatabase::evict_oldest_sequence() {
+  const auto seq = static_cast<std::uint32_t>(oldest_sequence_ & sequence_mask_);
+  ++oldest_sequence_;
+  ++sequences_evicted_;
+  assert(sequence_older_[seq] == kNone);  // the oldest is always a chain tail
+  const std::uint32_t newer = sequence_newer_[seq];
+  if (newer != kNone) {
+    sequence_older_[newer] = kNone;
+    return;
+  }
+  const std::uint32_t slot = find_slot(sequence_tag_[seq]);
+  assert(slot != kNone && slots_[slot].head == seq);
+  remove_slot(slot);
+}
+
+bool SequenceDatabase::add_sequence(std::span<const LandmarkId> ids) {
+  SequenceShape shape;
+  if (!shape_of(ids, shape)) return false;
+  std::array<std::uint32_t, kMaxSequenceLength> bins{};
+  for (unsigned i = 1; i < k_; ++i) bins[i - 1] = quantiser_.bin(shape.distances[i]);
+  const std::uint32_t tag = key_tag(shape, std::span<const std::uint32_t>(bins.data(), k_ - 1));
+
+  if (sequences_added_ - oldest_sequence_ > sequence_mask_) evict_oldest_sequence();
+  const auto seq = static_cast<std::uint32_t>(sequences_added_ & sequence_mask_);
+  ++sequences_added_;
+  std::copy(ids.begin(), ids.end(), sequence_ids_.begin() + std::ptrdiff_t(seq) * k_);
+  sequence_tag_[seq] = tag;
+  sequence_newer_[seq] = kNone;
+
+  std::uint32_t i = tag & slot_mask_;
+  while (slots_[i].head != kNone && slots_[i].tag != tag) i = (i + 1) & slot_mask_;
+  if (slots_[i].head == kNone) {
+    slots_[i].tag = tag;
+    sequence_older_[seq] = kNone;
+    ++slots_used_;
+  } else {
+    sequence_older_[seq] = slots_[i].head;
+    sequence_newer_[slots_[i].head] = seq;
+  }
+  slots_[i].head = seq;
+  return true;
+}
+
+bool SequenceDatabase::sequence_live(std::uint32_t seq) const {
+  const LandmarkId* ids = &sequence_ids_[std::size_t{seq} * k_];
+  for (unsigned i = 0; i < k_; ++i)
+    if (ids[i] < oldest_landmark_id_) return false;
+  return true;
+}
+
+bool SequenceDatabase::shape_matches(const SequenceShape& query, std::uint32_t seq) const {
+  if (!sequence_live(seq)) return false;
+  const LandmarkId* ids = &sequence_ids_[std::size_t{seq} * k_];
+  const Landmark* previous = nullptr;
+  for (unsigned i = 0; i < k_; ++i) {
+    const Landmark& current = landmarks_[ids[i] & landmark_mask_];
+    if (current.label != query.labels[i]) return false;
+    if (previous != nullptr) {
+      const double d = std::hypot(current.x - previous->x, current.y - previous->y);
+      if (!quantiser_.within_tolerance(d, query.distances[i])) return false;
+    }
+    previous = &current;
+  }
+  return true;
+}
+
+DatabaseStats SequenceDatabase::stats() const {
+  DatabaseStats s;
+  s.landmarks = next_landmark_id_ - oldest_landmark_id_;
+  s.sequences = static_cast<std::size_t>(sequences_added_ - oldest_sequence_);
+  s.landmark_capacity = landmarks_.size();
+  s.sequence_capacity = sequence_tag_.size();
+  s.index_slots = slots_.size();
+  s.index_used = slots_used_;
+  s.bytes_landmarks = landmarks_.size() * sizeof(Landmark);
+  s.bytes_sequences = sequence_ids_.size() * sizeof(LandmarkId) +
+                      sequence_tag_.size() * 3 * sizeof(std::uint32_t) +
+                      slots_.size() * sizeof(Slot);
+  s.landmarks_evicted = landmarks_evicted_;
+  s.sequences_evicted = sequences_evicted_;
+  return s;
+}
+
+}  // namespace markloop

@@ -1,0 +1,245 @@
+#include "engine/sequence_engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Core>
+
+#include "engine/rigid_alignment.hpp"
+
+namespace markloop {
+
+const char* validate(const EngineConfig& c) {
+  const auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  const auto finite_non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
+  if (c.chain.k < 2 || c.chain.k > kMaxSequenceLength) return "k must be between 2 and 10";
+  if (!finite_positive(c.tracker.association_radius_m))
+    return "association radius must be a positive number of metres";
+  if (!finite_positive(c.tracker.commit_after_s))
+    return "commit delay must be a positive number of seconds";
+  if (c.tracker.min_observations < 1) return "minimum observations must be at least 1";
+  if (!finite_non_negative(c.tracker.release_lag_m))
+    return "release lag must be a non-negative number of metres";
+  if (!finite_non_negative(c.chain.row_width_m))
+    return "row width must be a non-negative number of metres";
+  if (!std::isfinite(c.chain.max_link_m) || c.chain.max_link_m <= c.chain.row_width_m)
+    return "maximum link distance must exceed the row width";
+  if (!finite_positive(c.match.distance_tolerance_abs_m))
+    return "absolute distance tolerance must be a positive number of metres";
+  if (!std::isfinite(c.match.distance_tolerance_rel) || c.match.distance_tolerance_rel < 0.0 ||
+      c.match.distance_tolerance_rel > 0.2)
+    return "relative distance tolerance must be between 0 and 0.2";
+  if (!finite_non_negative(c.match.min_separation_m) ||
+      !finite_non_negative(c.match.min_separation_s))
+    return "minimum separation must be non-negative";
+  if (!finite_positive(c.match.max_residual_m))
+    return "maximum residual must be a positive number of metres";
+  // Below 2.5 tolerances a distance could straddle three bins.
+  if (!std::isfinite(c.match.index_bin_tolerances) || c.match.index_bin_tolerances < 2.5 ||
+      c.match.index_bin_tolerances > 1000.0)
+    return "index bin width must be between 2.5 and 1000 tolerances";
+  if (c.match.max_candidates_per_query < 1) return "candidate limit must be at least 1";
+  if (c.database.landmark_capacity < 16 || c.database.landmark_capacity > (std::size_t{1} << 30))
+    return "landmark capacity must be between 16 and 2^30";
+  if (c.database.sequence_capacity < 16 || c.database.sequence_capacity > (std::size_t{1} << 30))
+    return "sequence capacity must be between 16 and 2^30";
+  return nullptr;
+}
+
+SequenceEngine::SequenceEngine(const EngineConfig& config)
+    : config_(config),
+      tracker_(config.tracker),
+      database_(config.database, config.match, config.chain.k) {}
+
+void SequenceEngine::process_frame(const FrameInput& frame,
+                                   std::span<const Observation> observations, MatchSink& sink) {
+  ++counters_.frames;
+  if (counters_.frames > 1 && frame.t < last_t_) ++counters_.frames_out_of_order;
+  last_t_ = frame.t;
+
+  if (frame.has_pose) {
+    if (have_previous_pose_)
+      odometer_ += std::hypot(frame.pose.x - previous_pose_.x, frame.pose.y - previous_pose_.y);
+    previous_pose_ = frame.pose;
+    have_previous_pose_ = true;
+  }
+  tracker_.observe(frame, odometer_,
+                   observations.first(std::min(observations.size(), kMaxObservationsPerFrame)));
+  if (observations.size() > kMaxObservationsPerFrame)
+    counters_.observations_over_limit += observations.size() - kMaxObservationsPerFrame;
+  commit_and_release(frame.t, false, sink);
+}
+
+void SequenceEngine::flush(MatchSink& sink) { commit_and_release(last_t_, true, sink); }
+
+void SequenceEngine::break_chains(MatchSink& sink) {
+  flush(sink);
+  rows_.clear();
+  have_previous_pose_ = false;
+  ++counters_.chain_breaks;
+}
+
+void SequenceEngine::commit_and_release(double now, bool all, MatchSink& sink) {
+  for (;;) {
+    committed_.clear();
+    const bool done = tracker_.commit(now, all, committed_);
+    for (const Landmark& landmark : committed_) {
+      if (!landmark.has_car_pose) {
+        // Without a pose there is no odometer to wait for: release at once.
+        release(landmark, sink);
+        continue;
+      }
+      if (pending_.full()) {
+        ++counters_.pending_overflows;
+        release(pending_[0], sink);
+        pending_.erase_at(0);
+      }
+      // Insertion sort by station: the list is short and nearly sorted.
+      pending_.push_back(landmark);
+      for (std::size_t i = pending_.size() - 1;
+           i > 0 && pending_[i - 1].station > pending_[i].station; --i)
+        std::swap(pending_[i - 1], pending_[i]);
+    }
+    if (done) break;
+  }
+  while (!pending_.empty() &&
+         (all || pending_[0].station <= odometer_ - config_.tracker.release_lag_m)) {
+    release(pending_[0], sink);
+    pending_.erase_at(0);
+  }
+}
+
+void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
+  if (!landmark.has_car_pose) {
+    // No odometry: the travelled distance is the path through the markings.
+    landmark.station =
+        have_released_ ? last_released_.station + std::hypot(landmark.x - last_released_.x,
+                                                              landmark.y - last_released_.y)
+                       : 0.0;
+  }
+  const LandmarkId id = database_.add_landmark(landmark);
+  ++counters_.landmarks_released;
+  last_released_ = landmark;
+  have_released_ = true;
+
+  const ChainConfig& chain_config = config_.chain;
+  if (rows_.empty() || landmark.station > rows_.back().anchor_station + chain_config.row_width_m) {
+    if (!rows_.empty() &&
+        landmark.station - rows_.back().anchor_station > chain_config.max_link_m) {
+      rows_.clear();
+      ++counters_.chain_breaks;
+    }
+    if (rows_.size() == chain_config.k) rows_.erase_at(0);
+    rows_.push_back(Row{landmark.station, {}});
+  }
+  if (!rows_.back().members.push_back(id)) {
+    ++counters_.landmarks_unchained;
+    return;
+  }
+  if (rows_.size() == chain_config.k) chain(id, sink);
+}
+
+void SequenceEngine::chain(LandmarkId id, MatchSink& sink) {
+  const unsigned k = config_.chain.k;
+  // One landmark from each earlier row, then the new one: every combination,
+  // so a marking missed on one lane leaves the chains through other lanes.
+  std::array<std::size_t, kMaxSequenceLength> choice{};
+  std::array<LandmarkId, kMaxSequenceLength> ids{};
+  ids[k - 1] = id;
+  const std::span<const LandmarkId> sequence(ids.data(), k);
+
+  MatchEvent candidate;
+  bool found = false;
+  unsigned made = 0;
+  for (;;) {
+    for (unsigned r = 0; r + 1 < k; ++r) ids[r] = rows_[r].members[choice[r]];
+    if (made == kMaxSequencesPerLandmark) {
+      ++counters_.sequences_capped;
+    } else {
+      ++made;
+      if (match(sequence, candidate) && (!found || candidate.residual_m < best_.residual_m)) {
+        best_ = candidate;
+        found = true;
+      }
+      if (database_.add_sequence(sequence)) ++counters_.sequences_created;
+    }
+    unsigned r = 0;
+    while (r + 1 < k && choice[r] + 1 == rows_[r].members.size()) choice[r++] = 0;
+    if (r + 1 >= k) break;
+    ++choice[r];
+  }
+  if (found) {
+    ++counters_.matches;
+    sink.on_match(best_);
+  }
+}
+
+bool SequenceEngine::match(std::span<const LandmarkId> query, MatchEvent& best) {
+  const unsigned k = config_.chain.k;
+  const MatchConfig& mc = config_.match;
+  SequenceShape shape;
+  if (!database_.shape_of(query, shape)) return false;
+  ++counters_.queries;
+
+  std::array<Eigen::Vector2d, kMaxSequenceLength> query_points;
+  for (unsigned i = 0; i < k; ++i) {
+    best.query[i] = *database_.landmark(query[i]);
+    query_points[i] = {best.query[i].x, best.query[i].y};
+  }
+  const Landmark& query_first = best.query[0];
+
+  bool found = false;
+  unsigned verified = 0;
+  bool limited = false;
+  database_.for_each_match(shape, mc.max_candidates_per_query, limited,
+                           [&](std::span<const LandmarkId> candidate) {
+    ++counters_.candidates;
+    const Landmark& candidate_last = *database_.landmark(candidate[k - 1]);
+    if (candidate_last.station > query_first.station - mc.min_separation_m ||
+        candidate_last.t > query_first.t - mc.min_separation_s) {
+      ++counters_.candidates_too_recent;
+      return true;
+    }
+    std::array<Eigen::Vector2d, kMaxSequenceLength> candidate_points;
+    double normalised_error = 0.0;
+    for (unsigned i = 0; i < k; ++i) {
+      const Landmark& landmark = *database_.landmark(candidate[i]);
+      candidate_points[i] = {landmark.x, landmark.y};
+      if (i > 0) {
+        const double d = (candidate_points[i] - candidate_points[i - 1]).norm();
+        const double tolerance = database_.quantiser().tolerance(d, shape.distances[i]);
+        normalised_error += std::abs(d - shape.distances[i]) / tolerance;
+      }
+    }
+    const RigidFit fit = fit_rigid_2d({candidate_points.data(), k}, {query_points.data(), k});
+    if (fit.rms_residual > mc.max_residual_m) {
+      ++counters_.candidates_rejected_residual;
+      return true;
+    }
+    ++verified;
+    if (!found || fit.rms_residual < best.residual_m) {
+      found = true;
+      for (unsigned i = 0; i < k; ++i) best.match[i] = *database_.landmark(candidate[i]);
+      best.alignment = fit.transform;
+      best.residual_m = fit.rms_residual;
+      best.score = std::clamp(1.0 - normalised_error / (k - 1), 0.0, 1.0);
+    }
+    return true;
+  });
+  if (limited) ++counters_.candidate_limit_hits;
+  if (!found) return false;
+
+  best.k = k;
+  best.verified_candidates = verified;
+  const Landmark& q = best.query[k - 1];
+  const Landmark& m = best.match[k - 1];
+  best.has_relative_pose = q.has_car_pose && m.has_car_pose;
+  if (best.has_relative_pose) {
+    const Pose2 query_car{q.car_x, q.car_y, q.car_yaw};
+    const Pose2 match_car{m.car_x, m.car_y, m.car_yaw};
+    best.relative_pose = compose(inverse(compose(best.alignment, match_car)), query_car);
+  }
+  return true;
+}
+
+}  // namespace markloop

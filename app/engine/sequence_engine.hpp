@@ -1,0 +1,128 @@
+// The online road-marking sequence engine: observations in, matches out.
+//
+//   observations -> LandmarkTracker -> (release in along-track order)
+//     -> rows of side-by-side landmarks -> every chain of k rows ending at
+//        the new landmark -> query the database -> verify by rigid alignment
+//        -> MatchEvent; then the new sequences are stored.
+//
+// All memory is allocated in the constructor; process_frame() does not touch
+// the heap.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+
+#include "engine/config.hpp"
+#include "engine/fixed_vector.hpp"
+#include "engine/landmark_tracker.hpp"
+#include "engine/sequence_database.hpp"
+#include "engine/types.hpp"
+
+namespace markloop {
+
+struct MatchEvent {
+  unsigned k = 0;
+  std::array<Landmark, kMaxSequenceLength> query{};  // the new sequence
+  std::array<Landmark, kMaxSequenceLength> match{};  // the stored place it matched
+  // Rigid transform taking the matched landmarks' world positions onto the
+  // query's: the drift accumulated between the two visits.
+  Pose2 alignment{};
+  // The car's pose at the query's last landmark, expressed in the car's frame
+  // at the match's last landmark, after correcting by `alignment`: the loop
+  // closure constraint a pose graph needs. Only when both poses are known.
+  bool has_relative_pose = false;
+  Pose2 relative_pose{};
+  double residual_m = 0.0;  // RMS of the aligned landmark positions
+  double score = 0.0;       // 1 = distances agree exactly, 0 = at tolerance
+  unsigned verified_candidates = 0;
+
+  FrameIndex query_frame() const { return query[k - 1].last_frame; }
+  FrameIndex match_frame() const { return match[k - 1].last_frame; }
+};
+
+class MatchSink {
+ public:
+  virtual void on_match(const MatchEvent& event) = 0;
+
+ protected:
+  ~MatchSink() = default;
+};
+
+struct EngineCounters {
+  std::uint64_t frames = 0;
+  std::uint64_t frames_out_of_order = 0;
+  std::uint64_t observations_over_limit = 0;
+  std::uint64_t landmarks_released = 0;
+  std::uint64_t landmarks_unchained = 0;  // row already full
+  std::uint64_t pending_overflows = 0;
+  std::uint64_t chain_breaks = 0;
+  std::uint64_t sequences_created = 0;
+  std::uint64_t sequences_capped = 0;  // chains beyond the per-landmark cap
+  std::uint64_t queries = 0;
+  std::uint64_t candidates = 0;  // labels and distances agree
+  std::uint64_t candidates_too_recent = 0;
+  std::uint64_t candidates_rejected_residual = 0;
+  std::uint64_t candidate_limit_hits = 0;
+  std::uint64_t matches = 0;
+};
+
+class SequenceEngine {
+ public:
+  static constexpr std::size_t kMaxObservationsPerFrame = 32;
+  static constexpr std::size_t kMaxPending = 128;
+  static constexpr std::size_t kMaxRowSize = 4;
+  static constexpr unsigned kMaxSequencesPerLandmark = 64;
+
+  // Precondition: validate(config) == nullptr.
+  explicit SequenceEngine(const EngineConfig& config);
+
+  // Feeds one frame. Observations beyond kMaxObservationsPerFrame are dropped
+  // and counted by the tracker.
+  void process_frame(const FrameInput& frame, std::span<const Observation> observations,
+                     MatchSink& sink);
+  // End of a drive: commits and releases everything still in flight.
+  void flush(MatchSink& sink);
+  // The pose is unknown for a while: landmarks in flight are released and no
+  // sequence may span the gap.
+  void break_chains(MatchSink& sink);
+
+  const EngineConfig& config() const { return config_; }
+  const EngineCounters& counters() const { return counters_; }
+  const TrackerCounters& tracker_counters() const { return tracker_.counters(); }
+  const SequenceDatabase& database() const { return database_; }
+  double odometer() const { return odometer_; }
+
+ private:
+  struct Row {
+    double anchor_station = 0.0;
+    FixedVector<LandmarkId, kMaxRowSize> members;
+  };
+
+  void commit_and_release(double now, bool all, MatchSink& sink);
+  void release(Landmark landmark, MatchSink& sink);
+  void chain(LandmarkId id, MatchSink& sink);
+  // Best verified match of one new sequence; false when there is none.
+  bool match(std::span<const LandmarkId> query, MatchEvent& best);
+
+  EngineConfig config_;
+  LandmarkTracker tracker_;
+  SequenceDatabase database_;
+  EngineCounters counters_;
+
+  double odometer_ = 0.0;
+  bool have_previous_pose_ = false;
+  Pose2 previous_pose_{};
+  double last_t_ = 0.0;
+
+  FixedVector<Landmark, kMaxPending> committed_;  // scratch for the tracker
+  FixedVector<Landmark, kMaxPending> pending_;    // sorted by station
+  bool have_released_ = false;
+  Landmark last_released_{};
+
+  // The last k rows, oldest first.
+  FixedVector<Row, kMaxSequenceLength> rows_;
+  MatchEvent best_;  // scratch, kept here to keep the stack small
+};
+
+}  // namespace markloop

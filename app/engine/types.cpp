@@ -1,0 +1,24 @@
+#include "engine/types.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace markloop {
+
+double wrap_angle(double radians) {
+  return std::remainder(radians, 2.0 * std::numbers::pi);
+}
+
+Pose2 compose(const Pose2& a, const Pose2& b) {
+  const double c = std::cos(a.yaw);
+  const double s = std::sin(a.yaw);
+  return {a.x + c * b.x - s * b.y, a.y + s * b.x + c * b.y, wrap_angle(a.yaw + b.yaw)};
+}
+
+Pose2 inverse(const Pose2& p) {
+  const double c = std::cos(p.yaw);
+  const double s = std::sin(p.yaw);
+  return {-(c * p.x + s * p.y), s * p.x - c * p.y, wrap_angle(-p.yaw)};
+}
+
+}  // namespace markloop

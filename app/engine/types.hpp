@@ -1,0 +1,63 @@
+// Plain data exchanged with the sequence engine. Units: metres, seconds,
+// radians. The world frame is a 2-D ground frame (x, y) whose drift is slow.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+
+namespace markloop {
+
+// A marking class id. The engine treats labels as opaque; the classifier and
+// the replay tool own the mapping to names.
+using Label = std::uint16_t;
+using FrameIndex = std::uint32_t;
+// Monotonic id of a committed landmark; never reused within a session.
+using LandmarkId = std::uint32_t;
+inline constexpr LandmarkId kNoLandmark = std::numeric_limits<LandmarkId>::max();
+
+// Maximum sequence length the engine is built for (the paper sweeps 2..10).
+inline constexpr unsigned kMaxSequenceLength = 10;
+
+struct Pose2 {
+  double x = 0.0;
+  double y = 0.0;
+  double yaw = 0.0;
+};
+
+// Composition and inverse of planar rigid transforms.
+Pose2 compose(const Pose2& a, const Pose2& b);
+Pose2 inverse(const Pose2& p);
+double wrap_angle(double radians);
+
+// One detected marking in one frame, already placed on the ground.
+struct Observation {
+  Label label = 0;
+  float x = 0.0f;  // world frame, metres
+  float y = 0.0f;
+};
+
+struct FrameInput {
+  FrameIndex frame = 0;
+  double t = 0.0;          // seconds
+  bool has_pose = false;   // the car's pose in the world frame, when known
+  Pose2 pose{};
+};
+
+// A physical marking, fused from its observations, as stored in the database.
+struct Landmark {
+  LandmarkId id = kNoLandmark;
+  Label label = 0;
+  std::uint16_t observations = 0;
+  FrameIndex first_frame = 0;
+  FrameIndex last_frame = 0;  // the frame that represents the landmark
+  float x = 0.0f;             // world position, metres
+  float y = 0.0f;
+  float car_x = 0.0f;  // the car's pose at last_frame, when known
+  float car_y = 0.0f;
+  float car_yaw = 0.0f;
+  bool has_car_pose = false;
+  double t = 0.0;        // time of last_frame, seconds
+  double station = 0.0;  // distance travelled along the drive, metres
+};
+
+}  // namespace markloop
