@@ -1,0 +1,358 @@
+// markloop-replay: runs the sequence engine (or the authors' batch program,
+// --compat) on detections recorded in the paper's dataset format.
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "replay/compat.hpp"
+#include "replay/paper_format.hpp"
+#include "replay/replay.hpp"
+
+namespace {
+
+using namespace markloop;
+using namespace markloop::replay;
+
+constexpr double kDegPerRad = 180.0 / std::numbers::pi;
+
+constexpr const char* kUsage = R"(usage: markloop-replay --markings FILE [options]
+
+Runs the online road-marking sequence engine on recorded detections and
+prints the loops / places it found.
+
+input:
+  --markings FILE        detections, road_marking_centroids_3Dposition.txt
+                         format: the record count, then "frame x y z label"
+                         per record (y points down; the ground is x-z)
+  --poses FILE           one camera pose per frame (KITTI 3x4 [R|t]); the
+                         source of travelled distance. Without it, distance
+                         is measured along the markings themselves
+  --fps HZ               frame rate, for time; default 10
+
+engine:
+  --k N                  sequence length; default 4
+  --abs-tol M            distance tolerance, absolute part; default 0.5
+  --rel-tol R            distance tolerance, relative part; default 0.02
+  --min-separation M     a match lies at least this far back; default 100
+  --min-separation-s S   ... and at least this long ago; default 10
+  --max-residual M       largest RMS residual of the rigid fit; default 0.5
+  --association-radius M observations of one marking lie this close; default 1.5
+  --commit-after S       a marking unseen this long has left view; default 0.5
+  --min-observations N   detections needed to make a landmark; default 2
+  --sequence-capacity N  database size in sequences; default 1048576
+  --landmark-capacity N  database size in landmarks; default 262144
+
+  --compat               run the authors' batch program instead: frame gap
+                         T = 30, match gap 100 T, distance tolerance 2 m, same
+                         matches in the same order (only --k applies)
+
+output:
+  --out FILE             matches in the authors' image_matches.txt format
+  --jsonl FILE           one JSON record per match, with poses and residuals
+  --truth FILE           ground truth (simulator frames.csv or KITTI poses):
+                         report correct and wrong matches, revisit recall and
+                         relative pose error
+  --truth-radius M       a match is correct when the two frames' true
+                         positions are this close; default 10
+  --sweep A..B           run k = A..B and print a table of matches (and, with
+                         --truth, the share of correct ones)
+  --quiet                print only the summary
+  --help                 this text
+
+Exit status: 0 on success, 2 on bad input or options.
+)";
+
+[[noreturn]] void fail(const std::string& message) {
+  std::fprintf(stderr, "markloop-replay: %s\n", message.c_str());
+  std::exit(2);
+}
+
+double number(std::string_view option, const char* text) {
+  char* end = nullptr;
+  errno = 0;
+  const double value = std::strtod(text, &end);
+  if (end == text || *end != '\0' || errno != 0 || !std::isfinite(value))
+    fail(std::string(option) + ": not a number: '" + text + "'");
+  return value;
+}
+
+unsigned whole(std::string_view option, const char* text) {
+  const double value = number(option, text);
+  if (value < 0 || value != std::floor(value) || value > 4e9)
+    fail(std::string(option) + ": not a whole number: '" + text + "'");
+  return static_cast<unsigned>(value);
+}
+
+struct Options {
+  std::string markings, poses, out, jsonl, truth;
+  double fps = 10.0;
+  double truth_radius = 10.0;
+  bool compat = false;
+  bool quiet = false;
+  unsigned sweep_first = 0, sweep_last = 0;
+  EngineConfig engine;
+};
+
+Options parse(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      std::exit(0);
+    }
+    if (arg == "--compat") { o.compat = true; continue; }
+    if (arg == "--quiet") { o.quiet = true; continue; }
+    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
+    const char* v = argv[++i];
+    if (arg == "--markings") o.markings = v;
+    else if (arg == "--poses") o.poses = v;
+    else if (arg == "--out") o.out = v;
+    else if (arg == "--jsonl") o.jsonl = v;
+    else if (arg == "--truth") o.truth = v;
+    else if (arg == "--fps") o.fps = number(arg, v);
+    else if (arg == "--truth-radius") o.truth_radius = number(arg, v);
+    else if (arg == "--k") o.engine.chain.k = whole(arg, v);
+    else if (arg == "--abs-tol") o.engine.match.distance_tolerance_abs_m = number(arg, v);
+    else if (arg == "--rel-tol") o.engine.match.distance_tolerance_rel = number(arg, v);
+    else if (arg == "--min-separation") o.engine.match.min_separation_m = number(arg, v);
+    else if (arg == "--min-separation-s") o.engine.match.min_separation_s = number(arg, v);
+    else if (arg == "--max-residual") o.engine.match.max_residual_m = number(arg, v);
+    else if (arg == "--association-radius") o.engine.tracker.association_radius_m = number(arg, v);
+    else if (arg == "--commit-after") o.engine.tracker.commit_after_s = number(arg, v);
+    else if (arg == "--min-observations") o.engine.tracker.min_observations = whole(arg, v);
+    else if (arg == "--sequence-capacity") o.engine.database.sequence_capacity = whole(arg, v);
+    else if (arg == "--landmark-capacity") o.engine.database.landmark_capacity = whole(arg, v);
+    else if (arg == "--sweep") {
+      const std::string text = v;
+      const auto dots = text.find("..");
+      if (dots == std::string::npos) fail("--sweep: expected A..B, found '" + text + "'");
+      o.sweep_first = whole(arg, text.substr(0, dots).c_str());
+      o.sweep_last = whole(arg, text.substr(dots + 2).c_str());
+      if (o.sweep_first < 2 || o.sweep_last > kMaxSequenceLength || o.sweep_first > o.sweep_last)
+        fail("--sweep: expected 2 <= A <= B <= 10, found '" + text + "'");
+    } else fail("unknown option " + std::string(arg) + " (see --help)");
+  }
+  if (o.markings.empty()) fail("--markings FILE is required (see --help)");
+  if (!(o.fps > 0)) fail("--fps must be positive");
+  if (!(o.truth_radius > 0)) fail("--truth-radius must be positive");
+  if (const char* problem = validate(o.engine)) fail(problem);
+  return o;
+}
+
+FILE* open_output(const std::string& path) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) fail("cannot write " + path + ": " + std::strerror(errno));
+  return f;
+}
+
+void close_output(FILE* f, const std::string& path) {
+  if (std::ferror(f) != 0 || std::fclose(f) != 0)
+    fail("error writing " + path + ": " + std::strerror(errno));
+}
+
+void write_frames(FILE* f, const std::vector<int>& frames) {
+  for (const int frame : frames) std::fprintf(f, "%d ", frame);
+  std::fputc('\n', f);
+}
+
+std::vector<int> frames_of(const MatchEvent& e, bool query) {
+  std::vector<int> frames;
+  for (unsigned i = 0; i < e.k; ++i)
+    frames.push_back(static_cast<int>(query ? e.query[i].last_frame : e.match[i].last_frame));
+  return frames;
+}
+
+void write_jsonl(FILE* f, const MatchEvent& e, const LabelTable& labels, const TruthJudge* judge) {
+  const auto positions = [&](const auto& landmarks) {
+    std::string s = "[";
+    for (unsigned i = 0; i < e.k; ++i) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%s[%.3f,%.3f]", i ? "," : "", landmarks[i].x, landmarks[i].y);
+      s += buf;
+    }
+    return s + "]";
+  };
+  const auto frames = [&](bool query) {
+    std::string s = "[";
+    for (const int frame : frames_of(e, query)) {
+      if (s.size() > 1) s += ',';
+      s += std::to_string(frame);
+    }
+    return s + "]";
+  };
+  std::string label_list = "[";
+  for (unsigned i = 0; i < e.k; ++i) {
+    label_list += i ? ",\"" : "\"";
+    for (const char c : labels.name(e.query[i].label)) {
+      if (c == '"' || c == '\\') label_list += '\\';
+      label_list += c;
+    }
+    label_list += '"';
+  }
+  label_list += "]";
+  std::fprintf(f,
+               "{\"query_frame\":%u,\"match_frame\":%u,\"query_frames\":%s,\"match_frames\":%s,"
+               "\"labels\":%s,\"query_positions\":%s,\"match_positions\":%s,"
+               "\"alignment\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},",
+               e.query_frame(), e.match_frame(), frames(true).c_str(), frames(false).c_str(),
+               label_list.c_str(), positions(e.query).c_str(), positions(e.match).c_str(),
+               e.alignment.x, e.alignment.y, e.alignment.yaw * kDegPerRad);
+  if (e.has_relative_pose)
+    std::fprintf(f, "\"relative_pose\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},",
+                 e.relative_pose.x, e.relative_pose.y, e.relative_pose.yaw * kDegPerRad);
+  std::fprintf(f, "\"residual_m\":%.4f,\"score\":%.4f,\"verified_candidates\":%u", e.residual_m,
+               e.score, e.verified_candidates);
+  if (judge != nullptr && judge->covers(e.query_frame()) && judge->covers(e.match_frame()))
+    std::fprintf(f, ",\"correct\":%s", judge->correct({e.query_frame(), e.match_frame()}) ? "true" : "false");
+  std::fputs("}\n", f);
+}
+
+void print_evaluation(const Evaluation& e) {
+  const std::size_t judged = e.correct + e.wrong;
+  std::printf("truth: %zu correct, %zu wrong", e.correct, e.wrong);
+  if (judged > 0) std::printf(" (precision %.1f%%)", 100.0 * double(e.correct) / double(judged));
+  if (e.unjudged > 0) std::printf(", %zu beyond the truth file", e.unjudged);
+  std::printf("\n");
+  if (e.revisit_segments > 0)
+    std::printf("revisits: %zu of %zu revisited 100 m stretches detected (recall %.1f%%)\n",
+                e.revisit_segments_detected, e.revisit_segments,
+                100.0 * double(e.revisit_segments_detected) / double(e.revisit_segments));
+  if (e.pose_errors > 0)
+    std::printf("relative pose error: mean %.3f m / %.2f deg, max %.3f m / %.2f deg (%zu matches)\n",
+                e.translation_error_mean_m, e.rotation_error_mean_deg, e.translation_error_max_m,
+                e.rotation_error_max_deg, e.pose_errors);
+}
+
+std::vector<FramePair> compat_pairs(const std::vector<CompatMatch>& matches) {
+  std::vector<FramePair> pairs;
+  for (const CompatMatch& m : matches)
+    pairs.push_back({static_cast<FrameIndex>(m.later.back()), static_cast<FrameIndex>(m.earlier.back())});
+  return pairs;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Options o = parse(argc, argv);
+  std::string error;
+  std::vector<MarkingRecord> records;
+  if (!load_markings(o.markings, records, error)) fail(error);
+  std::vector<Pose2> poses;
+  if (!o.poses.empty() && !load_kitti_poses(o.poses, poses, error)) fail(error);
+  std::unique_ptr<TruthJudge> judge;
+  if (!o.truth.empty()) {
+    std::vector<Pose2> truth;
+    if (!load_truth(o.truth, truth, error)) fail(error);
+    judge = std::make_unique<TruthJudge>(std::move(truth), o.truth_radius,
+                                         o.engine.match.min_separation_m);
+  }
+  LabelTable labels;
+
+  // One run: returns the frame pairs found, writing outputs when asked.
+  const auto run = [&](unsigned k, bool write) -> std::vector<FramePair> {
+    if (o.compat) {
+      CompatParameters parameters;
+      parameters.k = k;
+      const auto matches = run_compat(records, parameters);
+      if (write && !o.out.empty()) {
+        FILE* f = open_output(o.out);
+        for (const CompatMatch& m : matches) {
+          write_frames(f, m.earlier);
+          write_frames(f, m.later);
+        }
+        close_output(f, o.out);
+      }
+      return compat_pairs(matches);
+    }
+    EngineConfig config = o.engine;
+    config.chain.k = k;
+    const ReplayResult result = run_engine(records, poses, labels, config, o.fps);
+    if (write) {
+      if (!o.out.empty()) {
+        FILE* f = open_output(o.out);
+        for (const MatchEvent& e : result.matches) {
+          write_frames(f, frames_of(e, false));
+          write_frames(f, frames_of(e, true));
+        }
+        close_output(f, o.out);
+      }
+      if (!o.jsonl.empty()) {
+        FILE* f = open_output(o.jsonl);
+        for (const MatchEvent& e : result.matches) write_jsonl(f, e, labels, judge.get());
+        close_output(f, o.jsonl);
+      }
+      const auto& c = result.counters;
+      std::printf("markloop-replay: %zu detections in %zu frames -> %llu landmarks, %llu sequences "
+                  "of k=%u, %llu queries, %llu candidates (%llu too recent, %llu failed the rigid "
+                  "fit)\n",
+                  records.size(), result.frames, (unsigned long long)c.landmarks_released,
+                  (unsigned long long)c.sequences_created, k, (unsigned long long)c.queries,
+                  (unsigned long long)c.candidates, (unsigned long long)c.candidates_too_recent,
+                  (unsigned long long)c.candidates_rejected_residual);
+      if (!o.quiet) {
+        for (const MatchEvent& e : result.matches) {
+          std::printf("  loop: frame %u matches frame %u  [", e.query_frame(), e.match_frame());
+          for (unsigned i = 0; i < e.k; ++i)
+            std::printf("%s%s", i ? " " : "", labels.name(e.query[i].label).c_str());
+          std::printf("]  residual %.3f m  score %.2f", e.residual_m, e.score);
+          if (e.has_relative_pose)
+            std::printf("  relative pose (%.2f m, %.2f m, %.1f deg)", e.relative_pose.x,
+                        e.relative_pose.y, e.relative_pose.yaw * kDegPerRad);
+          if (judge && judge->covers(e.query_frame()) && judge->covers(e.match_frame()) &&
+              !judge->correct({e.query_frame(), e.match_frame()}))
+            std::printf("  WRONG");
+          std::printf("\n");
+        }
+      }
+      std::vector<FramePair> pairs = frame_pairs(result.matches);
+      std::printf("matches: %zu\n", result.matches.size());
+      if (judge) print_evaluation(judge->evaluate(pairs, &result.matches));
+      return pairs;
+    }
+    return frame_pairs(result.matches);
+  };
+
+  if (o.sweep_first == 0) {
+    const auto pairs = run(o.engine.chain.k, true);
+    if (o.compat) {
+      std::printf("markloop-replay --compat: %zu records -> %zu matches (k=%u)\n", records.size(),
+                  pairs.size(), o.engine.chain.k);
+      if (judge) print_evaluation(judge->evaluate(pairs));
+    }
+    return 0;
+  }
+
+  std::printf("%-22s", "Search window size");
+  for (unsigned k = o.sweep_first; k <= o.sweep_last; ++k) std::printf(" %6u", k);
+  std::vector<std::size_t> counts, correct, judged;
+  for (unsigned k = o.sweep_first; k <= o.sweep_last; ++k) {
+    const auto pairs = run(k, false);
+    counts.push_back(pairs.size());
+    if (judge) {
+      const Evaluation e = judge->evaluate(pairs);
+      correct.push_back(e.correct);
+      judged.push_back(e.correct + e.wrong);
+    }
+  }
+  std::printf("\n%-22s", "Number of matches");
+  for (const std::size_t c : counts) std::printf(" %6zu", c);
+  if (judge) {
+    std::printf("\n%-22s", "Correct matches (%)");
+    for (std::size_t i = 0; i < counts.size(); ++i)
+      judged[i] ? std::printf(" %6.1f", 100.0 * double(correct[i]) / double(judged[i])) : std::printf(" %6s", "-");
+    std::printf("\n%-22s", "Incorrect matches (%)");
+    for (std::size_t i = 0; i < counts.size(); ++i)
+      judged[i] ? std::printf(" %6.1f", 100.0 * double(judged[i] - correct[i]) / double(judged[i])) : std::printf(" %6s", "-");
+  }
+  std::printf("\n");
+  return 0;
+}

@@ -1,0 +1,52 @@
+// Readers for the file formats of the paper's published dataset and of the
+// simulator's ground truth. Every error names the file and line.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "engine/types.hpp"
+
+namespace markloop::replay {
+
+// One record of road_marking_centroids_3Dposition.txt: a detection in frame
+// `frame` at (x, y, z) in camera-style world axes (x right, y down, z ahead).
+struct MarkingRecord {
+  std::int32_t frame = 0;
+  float x = 0.0f;
+  float y = 0.0f;
+  float z = 0.0f;
+  std::string label;
+  int line = 0;
+};
+
+// Interns label names into the engine's opaque label ids.
+class LabelTable {
+ public:
+  Label intern(const std::string& name);
+  const std::string& name(Label label) const { return names_.at(label); }
+  std::size_t size() const { return names_.size(); }
+
+ private:
+  std::vector<std::string> names_;
+  std::unordered_map<std::string, Label> ids_;
+};
+
+// Each loader returns false and sets `error` ("FILE:LINE: what") on bad input.
+bool load_markings(const std::string& path, std::vector<MarkingRecord>& records,
+                   std::string& error);
+// One 3x4 row-major [R|t] camera pose per line (KITTI odometry), line i for
+// frame i, converted to the ground frame (x ahead = z, y left = -x).
+bool load_kitti_poses(const std::string& path, std::vector<Pose2>& poses, std::string& error);
+// Ground truth per frame: the simulator's frames.csv (header frame,t,x,y,yaw)
+// or KITTI poses.
+bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error);
+
+// The paper's camera-style axes to the engine's ground frame.
+inline Observation to_ground(const MarkingRecord& r, Label label) {
+  return {label, r.z, -r.x};
+}
+
+}  // namespace markloop::replay
