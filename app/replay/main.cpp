@@ -1,5 +1,6 @@
 // markloop-replay: runs the sequence engine (or the authors' batch program,
 // --compat) on detections recorded in the paper's dataset format.
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -111,6 +112,13 @@ Options parse(int argc, char** argv) {
     }
     if (arg == "--compat") { o.compat = true; continue; }
     if (arg == "--quiet") { o.quiet = true; continue; }
+    static constexpr std::string_view kValueOptions[] = {
+        "--markings", "--poses", "--out", "--jsonl", "--truth", "--fps", "--truth-radius", "--k",
+        "--abs-tol", "--rel-tol", "--min-separation", "--min-separation-s", "--max-residual",
+        "--association-radius", "--commit-after", "--min-observations", "--sequence-capacity",
+        "--landmark-capacity", "--sweep"};
+    if (std::find(std::begin(kValueOptions), std::end(kValueOptions), arg) == std::end(kValueOptions))
+      fail("unknown option " + std::string(arg) + " (see --help)");
     if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
     const char* v = argv[++i];
     if (arg == "--markings") o.markings = v;
@@ -139,7 +147,7 @@ Options parse(int argc, char** argv) {
       o.sweep_last = whole(arg, text.substr(dots + 2).c_str());
       if (o.sweep_first < 2 || o.sweep_last > kMaxSequenceLength || o.sweep_first > o.sweep_last)
         fail("--sweep: expected 2 <= A <= B <= 10, found '" + text + "'");
-    } else fail("unknown option " + std::string(arg) + " (see --help)");
+    }
   }
   if (o.markings.empty()) fail("--markings FILE is required (see --help)");
   if (!(o.fps > 0)) fail("--fps must be positive");

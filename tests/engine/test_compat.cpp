@@ -1,0 +1,91 @@
+// The authors' batch program, checked against cases worked by hand from its
+// rules (frame gap T = 30, match gap 3000, distance tolerance 2 m).
+#include <catch2/catch_test_macros.hpp>
+
+#include <vector>
+
+#include "replay/compat.hpp"
+
+using namespace markloop::replay;
+
+namespace {
+MarkingRecord rec(int frame, float x, float y, float z, const char* label) {
+  return {frame, x, y, z, label, 0};
+}
+std::vector<CompatMatch> run(const std::vector<MarkingRecord>& records, unsigned k) {
+  CompatParameters p;
+  p.k = k;
+  return run_compat(records, p);
+}
+}  // namespace
+
+TEST_CASE("compat: empty input gives no matches", "[compat]") {
+  CHECK(run({}, 4).empty());
+  CHECK(run({rec(0, 0, 0, 0, "A")}, 2).empty());
+}
+
+// Worked by hand (k = 2):
+//   r0 f0 A (0,0,0)     list [ [r0] ]
+//   r1 f10 B            10 frames after r0 (< T): joins nothing, starts nothing
+//   r2 f40 B (0,0,5)    joins [r0] -> [r0 r2] d=5; it joined the last: start [r2]
+//   r3 f3100 A (0,0,100) joins [r2] -> [r2 r3]; start [r3]
+//   r4 f3140 B (0,0,105.5) joins [r3] -> [r3 r4] d=5.5; start [r4]
+// Complete: [0 40] A,B (0,5); [40 3100] B,A; [3100 3140] A,B (0,5.5).
+// [0 40] vs [3100 3140]: labels equal, frame gaps 3100 >= 3000, |5-5.5| <= 2.
+TEST_CASE("compat: sequences follow the frame-gap and last-sequence rules", "[compat]") {
+  const std::vector<MarkingRecord> records{
+      rec(0, 0, 0, 0, "A"), rec(10, 1, 0, 0, "B"), rec(40, 0, 0, 5, "B"),
+      rec(3100, 0, 0, 100, "A"), rec(3140, 0, 0, 105.5f, "B")};
+  const auto matches = run(records, 2);
+  REQUIRE(matches.size() == 1);
+  CHECK(matches[0].earlier == std::vector<int>{0, 40});
+  CHECK(matches[0].later == std::vector<int>{3100, 3140});
+}
+
+// Boundaries: frame gap exactly 3000 and distance difference exactly 2 match.
+//   r0 f0 A (0,0,0); r1 f30 B (3,0,0) -> [0 30] d=3, start [30]
+//   r2 f3000 A (0,0,100) -> [30 3000], start [3000]
+//   r3 f3030 B (0,0,105) -> [3000 3030] d=5, start [3030]
+TEST_CASE("compat: gap 3000 and tolerance 2 m are inclusive", "[compat]") {
+  std::vector<MarkingRecord> records{rec(0, 0, 0, 0, "A"), rec(30, 3, 0, 0, "B"),
+                                     rec(3000, 0, 0, 100, "A"), rec(3030, 0, 0, 105, "B")};
+  auto matches = run(records, 2);
+  REQUIRE(matches.size() == 1);
+  CHECK(matches[0].earlier == std::vector<int>{0, 30});
+  CHECK(matches[0].later == std::vector<int>{3000, 3030});
+
+  records[2].frame = 2999;  // first elements now 2999 frames apart
+  CHECK(run(records, 2).empty());
+
+  records[2].frame = 3000;
+  records[3].z = 105.5f;  // |3 - 5.5| > 2
+  CHECK(run(records, 2).empty());
+
+  records[3].z = 105;
+  records[3].label = "C";
+  CHECK(run(records, 2).empty());
+}
+
+// Matches come out in list order (i < j), earlier sequence first, and a
+// record joins every open sequence it is far enough from.
+//   k = 3: r0 f0, r1 f40 -> [0 40], [40]; r2 f80 -> [0 40 80], [40 80], [80]
+TEST_CASE("compat: a record joins every open sequence", "[compat]") {
+  const std::vector<MarkingRecord> first{rec(0, 0, 0, 0, "A"), rec(40, 0, 0, 10, "A"),
+                                         rec(80, 0, 0, 20, "A")};
+  std::vector<MarkingRecord> records = first;
+  for (const MarkingRecord& r : first) {
+    MarkingRecord again = r;
+    again.frame += 5000;
+    records.push_back(again);
+  }
+  // f5000 (z 0): [40 80] -> [40 80 5000] d(10,20); [80] -> [80 5000]; start [5000]
+  // f5040 (z 10): [80 5000] -> [80 5000 5040] d(20,10); [5000] -> [5000 5040]; start [5040]
+  // f5080 (z 20): [5000 5040] -> [5000 5040 5080] d(10,10); [5040] -> [5040 5080]; start [5080]
+  // Complete: S0 [0 40 80], S1 [40 80 5000], S2 [80 5000 5040], S3 [5000 5040 5080].
+  // Only S0-S3 have every frame gap >= 3000 (S1-S3 and S2-S3 fail at the
+  // last positions) and equal distances.
+  const auto matches = run(records, 3);
+  REQUIRE(matches.size() == 1);
+  CHECK(matches[0].earlier == std::vector<int>{0, 40, 80});
+  CHECK(matches[0].later == std::vector<int>{5000, 5040, 5080});
+}
