@@ -36,7 +36,8 @@ struct MatchConfig {
   double min_separation_s = 10.0;
   // Rigid 2-D alignment of the k landmark pairs: largest accepted RMS residual.
   double max_residual_m = 0.5;
-  // Index bins are this many tolerances wide; wider bins mean fewer probes.
+  // Index bins are this many tolerances wide (at least 3); wider bins mean
+  // fewer probes but longer chains.
   double index_bin_tolerances = 4.0;
   // Bound on candidates examined per query, so latency stays bounded even on
   // pathologically repetitive roads.

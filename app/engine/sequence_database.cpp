@@ -4,6 +4,7 @@
 #include <bit>
 #include <cassert>
 #include <cmath>
+#include <numbers>
 
 namespace markloop {
 
@@ -23,25 +24,36 @@ std::uint64_t mix(std::uint64_t h) {
 
 }  // namespace
 
+float planar_distance(const Landmark& a, const Landmark& b) {
+  // Plain sqrt: hypot's overflow care costs time and road distances are small.
+  const float dx = a.x - b.x;
+  const float dy = a.y - b.y;
+  return std::sqrt(dx * dx + dy * dy);
+}
+
 DistanceQuantiser::DistanceQuantiser(const MatchConfig& config)
     : abs_m_(config.distance_tolerance_abs_m),
       rel_(config.distance_tolerance_rel),
-      bin_width_(config.index_bin_tolerances) {}
+      growth_(static_cast<float>(rel_ / abs_m_)) {
+  // One unit of log2 is 2^23 float ulps; one tolerance is rel * log2(e) of
+  // log2 (relative growth), or abs_m metres without a relative part.
+  units_per_bin_ = config.index_bin_tolerances *
+                   (rel_ > 0.0 ? rel_ * std::numbers::log2e * 8388608.0 : abs_m_);
+}
 
-// g(d) grows by about one unit per tolerance: g'(d) = 1 / (abs + rel * d).
 std::uint32_t DistanceQuantiser::bin(double distance) const {
   const double d = std::max(distance, 0.0);
-  const double g = rel_ > 0.0 ? std::log1p(rel_ * d / abs_m_) / rel_ : d / abs_m_;
-  return static_cast<std::uint32_t>(std::min(g / bin_width_, 4.0e9));
+  if (rel_ <= 0.0) return static_cast<std::uint32_t>(std::min(d / units_per_bin_, 4.0e9));
+  const float grown = 1.0f + growth_ * static_cast<float>(std::min(d, 1.0e9));
+  const std::uint32_t ulps = std::bit_cast<std::uint32_t>(grown) - 0x3F800000u;  // bits of 1.0f
+  return static_cast<std::uint32_t>(ulps / units_per_bin_);
 }
 
 void DistanceQuantiser::bin_range(double distance, std::uint32_t& first,
                                   std::uint32_t& last) const {
   // All d2 with |d - d2| <= abs + rel * max(d, d2).
-  const double low = distance * (1.0 - rel_) - abs_m_;
-  const double high = (distance + abs_m_) / (1.0 - rel_);
-  first = bin(low);
-  last = bin(high);
+  first = bin(distance * (1.0 - rel_) - abs_m_);
+  last = bin((distance + abs_m_) / (1.0 - rel_));
 }
 
 double DistanceQuantiser::tolerance(double a, double b) const {
@@ -58,17 +70,17 @@ SequenceDatabase::SequenceDatabase(const DatabaseConfig& config, const MatchConf
   assert(k >= 2 && k <= kMaxSequenceLength);
   const std::size_t landmark_capacity = power_of_two_at_least(config.landmark_capacity);
   const std::size_t sequence_capacity = power_of_two_at_least(config.sequence_capacity);
-  landmarks_.resize(landmark_capacity);
+  landmarks_ = LargeArray<Landmark>(landmark_capacity);
   landmark_mask_ = landmark_capacity - 1;
-  sequence_ids_.resize(sequence_capacity * k_);
-  sequence_tag_.resize(sequence_capacity);
-  sequence_older_.resize(sequence_capacity);
-  sequence_newer_.resize(sequence_capacity);
+  sequence_ids_ = LargeArray<LandmarkId>(sequence_capacity * k_);
+  sequence_tag_ = LargeArray<std::uint32_t>(sequence_capacity);
+  sequence_older_ = LargeArray<std::uint32_t>(sequence_capacity);
+  sequence_newer_ = LargeArray<std::uint32_t>(sequence_capacity);
   sequence_mask_ = sequence_capacity - 1;
   // Load factor at most 1/2 keeps linear probes short.
   const std::size_t slot_count = power_of_two_at_least(2 * sequence_capacity);
   assert(slot_count <= (std::size_t{1} << 32));
-  slots_.resize(slot_count);
+  slots_ = LargeArray<Slot>(slot_count);
   slot_mask_ = static_cast<std::uint32_t>(slot_count - 1);
 }
 
@@ -108,17 +120,21 @@ bool SequenceDatabase::shape_of(std::span<const LandmarkId> ids, SequenceShape& 
     const Landmark* current = landmark(ids[i]);
     if (current == nullptr) return false;
     shape.labels[i] = current->label;
-    shape.distances[i] =
-        previous == nullptr ? 0.0f : std::hypot(current->x - previous->x, current->y - previous->y);
+    shape.distances[i] = previous == nullptr ? 0.0f : planar_distance(*current, *previous);
     previous = current;
   }
   return true;
 }
 
-std::uint32_t SequenceDatabase::key_tag(const SequenceShape& shape,
-                                        std::span<const std::uint32_t> bins) const {
+std::uint64_t SequenceDatabase::label_hash(const SequenceShape& shape) const {
   std::uint64_t h = 0x6D61726B6C6F6F70ull;  // "markloop"
   for (unsigned i = 0; i < k_; ++i) h = mix(h ^ shape.labels[i]);
+  return h;
+}
+
+std::uint32_t SequenceDatabase::key_tag(std::uint64_t label_hash,
+                                        std::span<const std::uint32_t> bins) {
+  std::uint64_t h = label_hash;
   for (const std::uint32_t b : bins) h = mix(h ^ (std::uint64_t{b} << 16));
   return static_cast<std::uint32_t>(h >> 32);
 }
@@ -161,17 +177,25 @@ void SequenceDatabase::evict_oldest_sequence() {
   remove_slot(slot);
 }
 
+void SequenceDatabase::prefetch_eviction() const {
+  if (sequences_added_ - oldest_sequence_ <= sequence_mask_) return;
+  const std::size_t victim = oldest_sequence_ & sequence_mask_;
+  prefetch(&slots_[sequence_tag_[victim] & slot_mask_]);
+}
+
 bool SequenceDatabase::add_sequence(std::span<const LandmarkId> ids) {
+  prefetch_eviction();
   SequenceShape shape;
   if (!shape_of(ids, shape)) return false;
   std::array<std::uint32_t, kMaxSequenceLength> bins{};
   for (unsigned i = 1; i < k_; ++i) bins[i - 1] = quantiser_.bin(shape.distances[i]);
-  const std::uint32_t tag = key_tag(shape, std::span<const std::uint32_t>(bins.data(), k_ - 1));
+  const std::uint32_t tag =
+      key_tag(label_hash(shape), std::span<const std::uint32_t>(bins.data(), k_ - 1));
 
   if (sequences_added_ - oldest_sequence_ > sequence_mask_) evict_oldest_sequence();
   const auto seq = static_cast<std::uint32_t>(sequences_added_ & sequence_mask_);
   ++sequences_added_;
-  std::copy(ids.begin(), ids.end(), sequence_ids_.begin() + std::ptrdiff_t(seq) * k_);
+  std::copy(ids.begin(), ids.end(), &sequence_ids_[std::size_t{seq} * k_]);
   sequence_tag_[seq] = tag;
   sequence_newer_[seq] = kNone;
 
@@ -204,8 +228,8 @@ bool SequenceDatabase::shape_matches(const SequenceShape& query, std::uint32_t s
     const Landmark& current = landmarks_[ids[i] & landmark_mask_];
     if (current.label != query.labels[i]) return false;
     if (previous != nullptr) {
-      const double d = std::hypot(current.x - previous->x, current.y - previous->y);
-      if (!quantiser_.within_tolerance(d, query.distances[i])) return false;
+      if (!quantiser_.within_tolerance(planar_distance(current, *previous), query.distances[i]))
+        return false;
     }
     previous = &current;
   }

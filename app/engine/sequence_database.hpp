@@ -13,9 +13,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
-#include <vector>
 
 #include "engine/config.hpp"
+#include "engine/large_array.hpp"
 #include "engine/types.hpp"
 
 namespace markloop {
@@ -40,7 +40,20 @@ struct DatabaseStats {
   std::uint64_t sequences_evicted = 0;
 };
 
+// Distance between two landmarks on the ground, metres.
+float planar_distance(const Landmark& a, const Landmark& b);
+
 // Tolerance and index quantisation shared by insertion and queries.
+//
+// Bins grow with distance like the tolerance does: a distance is mapped by
+// g(d) ~ log2(1 + rel d / abs) / (rel log2 e), about one unit per tolerance,
+// and binned in steps of `index_bin_tolerances`. The logarithm is the bit
+// pattern of a positive float read as an integer: exactly monotone (which is
+// all that correctness needs, since a query probes the bins of the exact
+// bounds of its tolerance interval) and a few instructions instead of log1p.
+// Its slope is within [ln 2, 2 ln 2] of the true one, so with bins of at
+// least 3 tolerances a tolerance interval (at most 2.11 tolerances wide for
+// rel <= 0.1) spans at most 2 bins: at most 2^(k-1) probes per query.
 class DistanceQuantiser {
  public:
   explicit DistanceQuantiser(const MatchConfig& config);
@@ -53,7 +66,8 @@ class DistanceQuantiser {
  private:
   double abs_m_;
   double rel_;
-  double bin_width_;
+  float growth_;           // rel / abs
+  double units_per_bin_;   // g units (float ulps or metres) per bin
 };
 
 class SequenceDatabase {
@@ -95,36 +109,48 @@ class SequenceDatabase {
 
  private:
   static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
+  // Each distance spans at most two bins (see validate()).
+  static constexpr unsigned kMaxProbes = 1u << (kMaxSequenceLength - 1);
+  static void prefetch(const void* address) {
+#if defined(__GNUC__)
+    __builtin_prefetch(address);
+#else
+    (void)address;
+#endif
+  }
   struct Slot {
     std::uint32_t tag = 0;
     std::uint32_t head = kNone;  // newest sequence in the chain
   };
 
-  std::uint32_t key_tag(const SequenceShape& shape,
-                        std::span<const std::uint32_t> bins) const;
+  std::uint64_t label_hash(const SequenceShape& shape) const;
+  static std::uint32_t key_tag(std::uint64_t label_hash, std::span<const std::uint32_t> bins);
   std::uint32_t find_slot(std::uint32_t tag) const;
   void remove_slot(std::uint32_t slot);
   void evict_oldest_sequence();
+  // The next insertion will evict the oldest sequence: start loading its
+  // index slot now so that miss overlaps other work.
+  void prefetch_eviction() const;
   bool sequence_live(std::uint32_t seq) const;
   bool shape_matches(const SequenceShape& query, std::uint32_t seq) const;
 
   unsigned k_;
   DistanceQuantiser quantiser_;
 
-  std::vector<Landmark> landmarks_;
+  LargeArray<Landmark> landmarks_;
   std::size_t landmark_mask_;
   LandmarkId next_landmark_id_ = 0;
   LandmarkId oldest_landmark_id_ = 0;
 
-  std::vector<LandmarkId> sequence_ids_;  // k per sequence
-  std::vector<std::uint32_t> sequence_tag_;
-  std::vector<std::uint32_t> sequence_older_;  // toward the chain tail
-  std::vector<std::uint32_t> sequence_newer_;  // toward the chain head
+  LargeArray<LandmarkId> sequence_ids_;  // k per sequence
+  LargeArray<std::uint32_t> sequence_tag_;
+  LargeArray<std::uint32_t> sequence_older_;  // toward the chain tail
+  LargeArray<std::uint32_t> sequence_newer_;  // toward the chain head
   std::size_t sequence_mask_;
   std::uint64_t sequences_added_ = 0;
   std::uint64_t oldest_sequence_ = 0;
 
-  std::vector<Slot> slots_;
+  LargeArray<Slot> slots_;
   std::uint32_t slot_mask_;
   std::size_t slots_used_ = 0;
 
@@ -137,36 +163,47 @@ unsigned SequenceDatabase::for_each_match(const SequenceShape& query, unsigned l
                                           bool& limited, Visitor&& visit) const {
   limited = false;
   if (query.k != k_) return 0;
-  // Each distance may fall into one or two bins; enumerate their product.
+  // Each distance may fall into one or two bins; probe their product.
   std::array<std::uint32_t, kMaxSequenceLength> first{}, last{}, bins{};
   for (unsigned i = 1; i < k_; ++i) {
     quantiser_.bin_range(query.distances[i], first[i], last[i]);
     bins[i] = first[i];
   }
-  unsigned seen = 0;
+  // Every probe's tag first, with its slot prefetched, so the cache misses
+  // of independent probes overlap instead of queueing one after another.
+  std::array<std::uint32_t, kMaxProbes> tags;
+  unsigned probes = 0;
   const std::span<const std::uint32_t> key_bins(bins.data() + 1, k_ - 1);
+  const std::uint64_t labels = label_hash(query);
   for (;;) {
-    const std::uint32_t slot = find_slot(key_tag(query, key_bins));
-    if (slot != kNone) {
-      for (std::uint32_t seq = slots_[slot].head; seq != kNone; seq = sequence_older_[seq]) {
-        if (!shape_matches(query, seq)) continue;
-        if (seen == limit) {
-          limited = true;
-          return seen;
-        }
-        ++seen;
-        if (!visit(std::span<const LandmarkId>(&sequence_ids_[std::size_t{seq} * k_], k_)))
-          return seen;
-      }
-    }
-    // Next combination of bins (odometer order).
+    const std::uint32_t tag = key_tag(labels, key_bins);
+    tags[probes++] = tag;
+    prefetch(&slots_[tag & slot_mask_]);
     unsigned i = 1;
     while (i < k_ && bins[i] == last[i]) {
       bins[i] = first[i];
       ++i;
     }
-    if (i >= k_) break;
+    if (i >= k_ || probes == kMaxProbes) break;
     ++bins[i];
+  }
+
+  prefetch_eviction();  // a query is usually followed by an insertion
+
+  unsigned seen = 0;
+  for (unsigned p = 0; p < probes; ++p) {
+    const std::uint32_t slot = find_slot(tags[p]);
+    if (slot == kNone) continue;
+    for (std::uint32_t seq = slots_[slot].head; seq != kNone; seq = sequence_older_[seq]) {
+      if (!shape_matches(query, seq)) continue;
+      if (seen == limit) {
+        limited = true;
+        return seen;
+      }
+      ++seen;
+      if (!visit(std::span<const LandmarkId>(&sequence_ids_[std::size_t{seq} * k_], k_)))
+        return seen;
+    }
   }
   return seen;
 }

@@ -27,17 +27,17 @@ const char* validate(const EngineConfig& c) {
   if (!finite_positive(c.match.distance_tolerance_abs_m))
     return "absolute distance tolerance must be a positive number of metres";
   if (!std::isfinite(c.match.distance_tolerance_rel) || c.match.distance_tolerance_rel < 0.0 ||
-      c.match.distance_tolerance_rel > 0.2)
-    return "relative distance tolerance must be between 0 and 0.2";
+      c.match.distance_tolerance_rel > 0.1)
+    return "relative distance tolerance must be between 0 and 0.1";
   if (!finite_non_negative(c.match.min_separation_m) ||
       !finite_non_negative(c.match.min_separation_s))
     return "minimum separation must be non-negative";
   if (!finite_positive(c.match.max_residual_m))
     return "maximum residual must be a positive number of metres";
-  // Below 2.5 tolerances a distance could straddle three bins.
-  if (!std::isfinite(c.match.index_bin_tolerances) || c.match.index_bin_tolerances < 2.5 ||
+  // Narrower bins could let a tolerance interval straddle three bins.
+  if (!std::isfinite(c.match.index_bin_tolerances) || c.match.index_bin_tolerances < 3.0 ||
       c.match.index_bin_tolerances > 1000.0)
-    return "index bin width must be between 2.5 and 1000 tolerances";
+    return "index bin width must be between 3 and 1000 tolerances";
   if (c.match.max_candidates_per_query < 1) return "candidate limit must be at least 1";
   if (c.database.landmark_capacity < 16 || c.database.landmark_capacity > (std::size_t{1} << 30))
     return "landmark capacity must be between 16 and 2^30";
@@ -113,9 +113,7 @@ void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
   if (!landmark.has_car_pose) {
     // No odometry: the travelled distance is the path through the markings.
     landmark.station =
-        have_released_ ? last_released_.station + std::hypot(landmark.x - last_released_.x,
-                                                              landmark.y - last_released_.y)
-                       : 0.0;
+        have_released_ ? last_released_.station + planar_distance(landmark, last_released_) : 0.0;
   }
   const LandmarkId id = database_.add_landmark(landmark);
   ++counters_.landmarks_released;

@@ -44,22 +44,29 @@ TEST_CASE("distance tolerance is absolute plus relative", "[database]") {
   CHECK_FALSE(q.within_tolerance(100.0, 102.6));
 }
 
-TEST_CASE("every distance within tolerance falls in the probed bins", "[database]") {
-  MatchConfig config;
-  config.index_bin_tolerances = 2.5;  // the narrowest allowed: the hardest case
-  const DistanceQuantiser q(config);
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> distance(0.0, 400.0), unit(-1.0, 1.0);
-  for (int i = 0; i < 200000; ++i) {
-    const double d = distance(rng);
-    const double other = std::max(0.0, d + unit(rng) * (q.tolerance(d, d) * 1.1 + 0.1));
-    if (!q.within_tolerance(d, other)) continue;
-    std::uint32_t first = 0, last = 0;
-    q.bin_range(d, first, last);
-    REQUIRE(last - first <= 1);
-    const std::uint32_t b = q.bin(other);
-    REQUIRE(b >= first);
-    REQUIRE(b <= last);
+TEST_CASE("every distance within tolerance falls in at most two probed bins", "[database]") {
+  for (const double rel : {0.0, 0.02, 0.1}) {
+    for (const double abs_m : {0.05, 0.5, 2.0}) {
+      INFO("rel " << rel << " abs " << abs_m);
+      MatchConfig config;
+      config.distance_tolerance_abs_m = abs_m;
+      config.distance_tolerance_rel = rel;
+      config.index_bin_tolerances = 3.0;  // the narrowest allowed: the hardest case
+      const DistanceQuantiser q(config);
+      std::mt19937 rng(5);
+      std::uniform_real_distribution<double> distance(0.0, 2000.0), unit(-1.0, 1.0);
+      for (int i = 0; i < 100000; ++i) {
+        const double d = i % 2 ? distance(rng) : distance(rng) / 100.0;
+        const double other = std::max(0.0, d + unit(rng) * q.tolerance(d, d) * 1.2);
+        std::uint32_t first = 0, last = 0;
+        q.bin_range(d, first, last);
+        REQUIRE(last - first <= 1);
+        if (!q.within_tolerance(d, other)) continue;
+        const std::uint32_t b = q.bin(other);
+        REQUIRE(b >= first);
+        REQUIRE(b <= last);
+      }
+    }
   }
 }
 
