@@ -1,4 +1,5 @@
-// Alive counter policy, receive timeout and the per-message Receiver.
+// Alive counter policy, receive timeout, the per-message Receiver and the
+// LoopDetection page assembler.
 #include <array>
 #include <chrono>
 #include <cstdint>
@@ -6,6 +7,7 @@
 
 #include <catch2/catch_test_macros.hpp>
 
+#include "markloop/dbc/loop_detection_assembler.hpp"
 #include "markloop/dbc/markloop_messages.hpp"
 
 using namespace markloop::dbc;
@@ -128,4 +130,66 @@ TEST_CASE("Receiver of an event message never times out and keeps its counter") 
   // A replay of the same frame an hour later is still a repeated counter.
   CHECK(receiver.receive(payload(first), 1h, out) == DecodeError::BadCounter);
   CHECK(receiver.receive(payload(encode_frame(command, sender)), 1h, out) == DecodeError::None);
+}
+
+namespace {
+
+std::array<CanFrame, 6> loop_frames(std::uint8_t match_id, std::uint32_t query_frame, E2eSenderState& sender) {
+  LoopDetection loop;
+  loop.match_id = match_id;
+  loop.query_frame = query_frame;
+  loop.match_frame = query_frame / 2;
+  loop.pose_dx_m = 1.5;
+  loop.pose_residual_m = 0.02;
+  std::array<CanFrame, 6> frames{};
+  for (std::size_t i = 0; i < LoopDetection::kPages.size(); ++i) {
+    loop.loop_page = LoopDetection::kPages[i];
+    frames[i] = encode_frame(loop, sender);
+  }
+  return frames;
+}
+
+// What a receiver does per frame: decode into a fresh struct, feed or drop.
+bool feed(LoopDetectionAssembler& assembler, E2eReceiverState& e2e, const CanFrame& frame) {
+  LoopDetection page;
+  if (decode(payload(frame), e2e, page) != DecodeError::None) {
+    assembler.drop();
+    return false;
+  }
+  return assembler.add(page);
+}
+
+}  // namespace
+
+TEST_CASE("LoopDetectionAssembler completes a detection from its six pages") {
+  E2eSenderState sender;
+  E2eReceiverState e2e;
+  LoopDetectionAssembler assembler;
+  const auto frames = loop_frames(9, 5000, sender);
+  for (std::size_t i = 0; i + 1 < frames.size(); ++i) CHECK_FALSE(feed(assembler, e2e, frames[i]));
+  REQUIRE(feed(assembler, e2e, frames.back()));
+  const LoopDetection& detection = assembler.detection();
+  CHECK(detection.match_id == 9);
+  CHECK(detection.query_frame == 5000);
+  CHECK(detection.match_frame == 2500);
+  CHECK(detection.pose_dx_m == 1.5);
+  CHECK(detection.pose_residual_m == 0.02);
+}
+
+TEST_CASE("LoopDetectionAssembler discards a detection with a lost page") {
+  E2eSenderState sender;
+  E2eReceiverState e2e;
+  LoopDetectionAssembler assembler;
+  const auto first = loop_frames(1, 100, sender);
+  for (std::size_t i = 0; i < first.size(); ++i) {
+    if (i == 3) continue;  // lost on the bus: the next frame's counter skips
+    CHECK_FALSE(feed(assembler, e2e, first[i]));
+  }
+  // The next detection is complete again.
+  const auto second = loop_frames(2, 200, sender);
+  bool complete = false;
+  for (const CanFrame& frame : second) complete = feed(assembler, e2e, frame);
+  CHECK(complete);
+  CHECK(assembler.detection().match_id == 2);
+  CHECK(assembler.detection().query_frame == 200);
 }
