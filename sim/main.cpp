@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include "cli/cli.hpp"
 #include "sim/drive.hpp"
 #include "sim/world.hpp"
 
@@ -17,6 +18,7 @@ namespace {
 
 using markloop::Pose2;
 using namespace markloop::sim;
+using namespace markloop::cli;
 
 constexpr const char* kUsage = R"(usage: markloop-sim drive --scenario NAME --out DIR [options]
        markloop-sim list
@@ -37,31 +39,6 @@ options:
   --fps HZ          camera frame rate; default 10
   --help            this text
 )";
-
-[[noreturn]] void fail(const std::string& message) {
-  std::fprintf(stderr, "markloop-sim: %s\n", message.c_str());
-  std::exit(2);
-}
-
-double parse_number(std::string_view option, const char* text) {
-  char* end = nullptr;
-  errno = 0;
-  const double value = std::strtod(text, &end);
-  if (end == text || *end != '\0' || errno != 0 || !std::isfinite(value))
-    fail(std::string(option) + ": not a number: '" + text + "'");
-  return value;
-}
-
-FILE* open_for_writing(const std::filesystem::path& path) {
-  FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) fail("cannot write " + path.string() + ": " + std::strerror(errno));
-  return f;
-}
-
-void close_checked(FILE* f, const std::filesystem::path& path) {
-  if (std::ferror(f) != 0 || std::fclose(f) != 0)
-    fail("error writing " + path.string() + ": " + std::strerror(errno));
-}
 
 // Ground frame (x ahead, y left) to the camera-style world of the paper's
 // files (x right, y down, z ahead); the ground lies 1.5 m below the camera.
@@ -104,8 +81,8 @@ int drive(int argc, char** argv) {
   Drive drive(*scenario, drive_config, seed * 7919 + 17);
   const auto& classes = marking_class_names();
   std::vector<std::string> records;
-  FILE* poses = open_for_writing(dir / "poses.txt");
-  FILE* frames = open_for_writing(dir / "frames.csv");
+  FILE* poses = open_output(dir / "poses.txt");
+  FILE* frames = open_output(dir / "frames.csv");
   std::fprintf(frames, "frame,t,x,y,yaw\n");
   DriveFrame frame;
   char line[160];
@@ -119,20 +96,20 @@ int drive(int argc, char** argv) {
       records.emplace_back(line);
     }
   }
-  close_checked(poses, dir / "poses.txt");
-  close_checked(frames, dir / "frames.csv");
+  close_output(poses, dir / "poses.txt");
+  close_output(frames, dir / "frames.csv");
 
-  FILE* markings = open_for_writing(dir / "markings.txt");
+  FILE* markings = open_output(dir / "markings.txt");
   std::fprintf(markings, "%zu\n", records.size());
   for (const auto& r : records) std::fprintf(markings, "%s\n", r.c_str());
-  close_checked(markings, dir / "markings.txt");
+  close_output(markings, dir / "markings.txt");
 
-  FILE* world = open_for_writing(dir / "markings.csv");
+  FILE* world = open_output(dir / "markings.csv");
   std::fprintf(world, "id,class,x,y,heading\n");
   for (const Marking& m : scenario->markings)
     std::fprintf(world, "%u,%s,%.4f,%.4f,%.6f\n", m.id, classes.at(m.label).c_str(), m.x, m.y,
                  m.heading);
-  close_checked(world, dir / "markings.csv");
+  close_output(world, dir / "markings.csv");
 
   std::printf("markloop-sim: %s (%s): %zu frames, %zu markings in the world, %zu detections -> %s\n",
               scenario->name.c_str(), scenario->description.c_str(), drive.frame_count(),
@@ -143,6 +120,7 @@ int drive(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  program_name() = "markloop-sim";
   const std::string_view command = argc > 1 ? argv[1] : "";
   if (command == "drive") return drive(argc, argv);
   if (command == "list") {

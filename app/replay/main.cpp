@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "cli/cli.hpp"
 #include "replay/compat.hpp"
 #include "replay/paper_format.hpp"
 #include "replay/replay.hpp"
@@ -21,6 +22,7 @@ namespace {
 
 using namespace markloop;
 using namespace markloop::replay;
+using namespace markloop::cli;
 
 constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
@@ -71,27 +73,6 @@ output:
 Exit status: 0 on success, 2 on bad input or options.
 )";
 
-[[noreturn]] void fail(const std::string& message) {
-  std::fprintf(stderr, "markloop-replay: %s\n", message.c_str());
-  std::exit(2);
-}
-
-double number(std::string_view option, const char* text) {
-  char* end = nullptr;
-  errno = 0;
-  const double value = std::strtod(text, &end);
-  if (end == text || *end != '\0' || errno != 0 || !std::isfinite(value))
-    fail(std::string(option) + ": not a number: '" + text + "'");
-  return value;
-}
-
-unsigned whole(std::string_view option, const char* text) {
-  const double value = number(option, text);
-  if (value < 0 || value != std::floor(value) || value > 4e9)
-    fail(std::string(option) + ": not a whole number: '" + text + "'");
-  return static_cast<unsigned>(value);
-}
-
 struct Options {
   std::string markings, poses, out, jsonl, truth;
   double fps = 10.0;
@@ -126,25 +107,25 @@ Options parse(int argc, char** argv) {
     else if (arg == "--out") o.out = v;
     else if (arg == "--jsonl") o.jsonl = v;
     else if (arg == "--truth") o.truth = v;
-    else if (arg == "--fps") o.fps = number(arg, v);
-    else if (arg == "--truth-radius") o.truth_radius = number(arg, v);
-    else if (arg == "--k") o.engine.chain.k = whole(arg, v);
-    else if (arg == "--abs-tol") o.engine.match.distance_tolerance_abs_m = number(arg, v);
-    else if (arg == "--rel-tol") o.engine.match.distance_tolerance_rel = number(arg, v);
-    else if (arg == "--min-separation") o.engine.match.min_separation_m = number(arg, v);
-    else if (arg == "--min-separation-s") o.engine.match.min_separation_s = number(arg, v);
-    else if (arg == "--max-residual") o.engine.match.max_residual_m = number(arg, v);
-    else if (arg == "--association-radius") o.engine.tracker.association_radius_m = number(arg, v);
-    else if (arg == "--commit-after") o.engine.tracker.commit_after_s = number(arg, v);
-    else if (arg == "--min-observations") o.engine.tracker.min_observations = whole(arg, v);
-    else if (arg == "--sequence-capacity") o.engine.database.sequence_capacity = whole(arg, v);
-    else if (arg == "--landmark-capacity") o.engine.database.landmark_capacity = whole(arg, v);
+    else if (arg == "--fps") o.fps = parse_number(arg, v);
+    else if (arg == "--truth-radius") o.truth_radius = parse_number(arg, v);
+    else if (arg == "--k") o.engine.chain.k = parse_whole(arg, v);
+    else if (arg == "--abs-tol") o.engine.match.distance_tolerance_abs_m = parse_number(arg, v);
+    else if (arg == "--rel-tol") o.engine.match.distance_tolerance_rel = parse_number(arg, v);
+    else if (arg == "--min-separation") o.engine.match.min_separation_m = parse_number(arg, v);
+    else if (arg == "--min-separation-s") o.engine.match.min_separation_s = parse_number(arg, v);
+    else if (arg == "--max-residual") o.engine.match.max_residual_m = parse_number(arg, v);
+    else if (arg == "--association-radius") o.engine.tracker.association_radius_m = parse_number(arg, v);
+    else if (arg == "--commit-after") o.engine.tracker.commit_after_s = parse_number(arg, v);
+    else if (arg == "--min-observations") o.engine.tracker.min_observations = parse_whole(arg, v);
+    else if (arg == "--sequence-capacity") o.engine.database.sequence_capacity = parse_whole(arg, v);
+    else if (arg == "--landmark-capacity") o.engine.database.landmark_capacity = parse_whole(arg, v);
     else if (arg == "--sweep") {
       const std::string text = v;
       const auto dots = text.find("..");
       if (dots == std::string::npos) fail("--sweep: expected A..B, found '" + text + "'");
-      o.sweep_first = whole(arg, text.substr(0, dots).c_str());
-      o.sweep_last = whole(arg, text.substr(dots + 2).c_str());
+      o.sweep_first = parse_whole(arg, text.substr(0, dots).c_str());
+      o.sweep_last = parse_whole(arg, text.substr(dots + 2).c_str());
       if (o.sweep_first < 2 || o.sweep_last > kMaxSequenceLength || o.sweep_first > o.sweep_last)
         fail("--sweep: expected 2 <= A <= B <= 10, found '" + text + "'");
     }
@@ -154,17 +135,6 @@ Options parse(int argc, char** argv) {
   if (!(o.truth_radius > 0)) fail("--truth-radius must be positive");
   if (const char* problem = validate(o.engine)) fail(problem);
   return o;
-}
-
-FILE* open_output(const std::string& path) {
-  FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) fail("cannot write " + path + ": " + std::strerror(errno));
-  return f;
-}
-
-void close_output(FILE* f, const std::string& path) {
-  if (std::ferror(f) != 0 || std::fclose(f) != 0)
-    fail("error writing " + path + ": " + std::strerror(errno));
 }
 
 void write_frames(FILE* f, const std::vector<int>& frames) {
@@ -250,6 +220,7 @@ std::vector<FramePair> compat_pairs(const std::vector<CompatMatch>& matches) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  program_name() = "markloop-replay";
   const Options o = parse(argc, argv);
   std::string error;
   std::vector<MarkingRecord> records;

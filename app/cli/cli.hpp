@@ -1,0 +1,53 @@
+// Small helpers shared by the command-line programs: uniform error messages
+// ("PROGRAM: what is wrong", exit status 2), strict number parsing and
+// checked output files. Not for the real-time loop.
+#pragma once
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <string_view>
+
+namespace markloop::cli {
+
+inline const char*& program_name() {
+  static const char* name = "markloop";
+  return name;
+}
+
+[[noreturn]] inline void fail(const std::string& message) {
+  std::fprintf(stderr, "%s: %s\n", program_name(), message.c_str());
+  std::exit(2);
+}
+
+inline double parse_number(std::string_view option, const char* text) {
+  char* end = nullptr;
+  errno = 0;
+  const double value = std::strtod(text, &end);
+  if (end == text || *end != '\0' || errno != 0 || !std::isfinite(value))
+    fail(std::string(option) + ": not a number: '" + text + "'");
+  return value;
+}
+
+inline unsigned parse_whole(std::string_view option, const char* text) {
+  const double value = parse_number(option, text);
+  if (value < 0 || value != std::floor(value) || value > 4e9)
+    fail(std::string(option) + ": not a whole number: '" + text + "'");
+  return static_cast<unsigned>(value);
+}
+
+inline FILE* open_output(const std::string& path) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) fail("cannot write " + path + ": " + std::strerror(errno));
+  return f;
+}
+
+inline void close_output(FILE* f, const std::string& path) {
+  if (std::ferror(f) != 0 || std::fclose(f) != 0)
+    fail("error writing " + path + ": " + std::strerror(errno));
+}
+
+}  // namespace markloop::cli
