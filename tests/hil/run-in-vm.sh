@@ -1,0 +1,387 @@
+#!/usr/bin/env bash
+# Hardware-in-the-loop runner: runs shell commands where a real vcan0 exists.
+#
+#   run-in-vm.sh [options] [--] 'command 1' ['command 2' ...]
+#
+# Natively when the host kernel can create vcan interfaces; otherwise inside a
+# qemu VM booted from Debian's own kernel package (see
+# /work/shared/reference/hil-vm-notes.md):
+#   1. `apt-get download` the linux-image package that linux-image-amd64
+#      depends on, `dpkg -x` it, keep vmlinuz + the modules we need (CAN,
+#      9p/virtio, vivid and its media deps), `depmod -b`; cached in the cache
+#      dir (default ~/.cache/markloop-hil), so only the first run downloads.
+#   2. Build a busybox-static initramfs whose /init loads the modules in
+#      modules.dep order, mounts the host root read-only over 9p, a writable
+#      9p share for results, chroots into the host root, creates vcan0, runs
+#      each command (output + exit status to the results share), powers off.
+#   3. Boot qemu (-accel tcg unless KVM was probed to work), then check that
+#      every command left an exit status. Anything missing is a FAILURE: this
+#      script never skips silently.
+#
+# Each command runs under /bin/sh -c in the directory this script was called
+# from, as root, with HIL_RESULTS (a writable directory whose files are kept
+# in <results>/out on the host) and HIL_IN_VM=1|0 set. In the VM /tmp is a
+# fresh tmpfs; everything else of the host is read-only.
+#
+# Options:
+#   --cache DIR      download/kernel cache (env MARKLOOP_HIL_CACHE)
+#   --results DIR    where to put logs (default: a fresh temp dir)
+#   --mode M         auto | native | vm  (env MARKLOOP_HIL_MODE; default auto)
+#   --accel A        auto | tcg | kvm    (env MARKLOOP_HIL_ACCEL; default auto:
+#                    KVM only when /dev/kvm is usable and a cached probe boot
+#                    with KVM succeeded, else tcg)
+#   --timeout SEC    wall-clock limit for the VM (default 600)
+#   --require FILE   fail unless FILE exists (e.g. a test binary); repeatable
+#   --with-vivid     also load vivid (virtual V4L2 camera) in the VM
+#   --prepare-only   download/cache the kernel and exit
+set -euo pipefail
+
+die() {
+  echo "run-in-vm: ERROR: $*" >&2
+  exit 1
+}
+log() { echo "run-in-vm: $*" >&2; }
+
+cache=${MARKLOOP_HIL_CACHE:-${HOME:-/root}/.cache/markloop-hil}
+results=
+mode=${MARKLOOP_HIL_MODE:-auto}
+accel=${MARKLOOP_HIL_ACCEL:-auto}
+timeout_s=600
+with_vivid=0
+prepare_only=0
+requires=()
+commands=()
+
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --cache) cache=$2; shift 2 ;;
+    --results) results=$2; shift 2 ;;
+    --mode) mode=$2; shift 2 ;;
+    --accel) accel=$2; shift 2 ;;
+    --timeout) timeout_s=$2; shift 2 ;;
+    --require) requires+=("$2"); shift 2 ;;
+    --with-vivid) with_vivid=1; shift ;;
+    --prepare-only) prepare_only=1; shift ;;
+    --) shift; commands+=("$@"); break ;;
+    -*) die "unknown option $1" ;;
+    *) commands+=("$1"); shift ;;
+  esac
+done
+
+[ "$prepare_only" = 1 ] || [ "${#commands[@]}" -gt 0 ] || die "no command given"
+for f in "${requires[@]}"; do
+  [ -e "$f" ] || die "required file $f does not exist (build the project first: cmake --build --preset host)"
+done
+case "$mode" in auto|native|vm) ;; *) die "bad --mode $mode" ;; esac
+case "$accel" in auto|tcg|kvm) ;; *) die "bad --accel $accel" ;; esac
+
+if [ -z "$results" ]; then
+  results=$(mktemp -d "${TMPDIR:-/tmp}/markloop-hil.XXXXXX")
+fi
+mkdir -p "$results"
+results=$(cd "$results" && pwd)
+rm -rf "$results/out" "$results/cmds" "$results/console.log"
+mkdir -p "$results/out" "$results/cmds"
+workdir=$(pwd)
+
+# ------------------------------------------------------------------ helpers
+
+summarize() {
+  # Prints every command's log and status; fails unless all ran and passed.
+  local i rc status=0 n=${#commands[@]}
+  for ((i = 0; i < n; i++)); do
+    local id
+    id=$(printf '%02d' "$i")
+    echo "===== [$id] ${commands[$i]}"
+    if [ -f "$results/out/$id.log" ]; then cat "$results/out/$id.log"; else echo "(no output file)"; fi
+    if [ ! -f "$results/out/$id.rc" ]; then
+      echo "===== [$id] FAILED: no exit status (the command did not run or did not finish)"
+      status=1
+      continue
+    fi
+    rc=$(cat "$results/out/$id.rc")
+    if [ "$rc" = 0 ]; then
+      echo "===== [$id] passed"
+    else
+      echo "===== [$id] FAILED with exit status $rc"
+      status=1
+    fi
+  done
+  if [ -f "$results/out/fatal" ]; then
+    echo "run-in-vm: guest reported a fatal error: $(cat "$results/out/fatal")"
+    status=1
+  fi
+  return $status
+}
+
+# ------------------------------------------------------------------ native
+
+native_vcan_possible() {
+  [ "$(id -u)" = 0 ] || return 1
+  if ip link show vcan0 >/dev/null 2>&1; then
+    ip -details link show vcan0 2>/dev/null | grep -q vcan || return 1
+    return 0
+  fi
+  ip link add dev vcan0 type vcan >/dev/null 2>&1 || return 1
+  return 0
+}
+
+run_native() {
+  log "host kernel has vcan: running natively"
+  ip link set vcan0 up
+  local i n=${#commands[@]}
+  for ((i = 0; i < n; i++)); do
+    local id
+    id=$(printf '%02d' "$i")
+    set +e
+    (cd "$workdir" && HIL_RESULTS="$results/out" HIL_IN_VM=0 /bin/sh -c "${commands[$i]}") \
+      >"$results/out/$id.log" 2>&1
+    echo $? >"$results/out/$id.rc"
+    set -e
+  done
+  summarize
+}
+
+if [ "$mode" != vm ] && [ "$prepare_only" = 0 ]; then
+  if native_vcan_possible; then
+    run_native
+    exit $?
+  fi
+  [ "$mode" = native ] && die "--mode native: this kernel cannot create vcan interfaces"
+  log "host kernel has no vcan ($(uname -r)): using a qemu VM"
+fi
+
+# ------------------------------------------------------------------ VM: tools
+
+for tool in qemu-system-x86_64 cpio depmod modprobe dpkg apt-get apt-cache gzip flock timeout; do
+  command -v "$tool" >/dev/null || die "$tool not found: run .ci/setup (packages qemu-system-x86, cpio, kmod, ...)"
+done
+busybox=/bin/busybox
+[ -x "$busybox" ] || die "$busybox missing: install busybox-static"
+file_out=$(LC_ALL=C readelf -d "$busybox" 2>/dev/null | grep -c NEEDED || true)
+[ "$file_out" = 0 ] || die "$busybox is dynamically linked: install busybox-static"
+
+# ------------------------------------------------------------------ VM: kernel cache
+
+mkdir -p "$cache"
+exec 9>"$cache/lock"
+flock 9
+
+kpkg=${MARKLOOP_HIL_KERNEL_PACKAGE:-}
+if [ -z "$kpkg" ]; then
+  kpkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/{print $2; exit}')
+fi
+if [ -z "$kpkg" ]; then
+  # No apt lists: use whatever kernel is cached already.
+  kpkg=$(ls -d "$cache"/linux-image-*-amd64 2>/dev/null | tail -n1 | xargs -r -n1 basename || true)
+  [ -n "$kpkg" ] || die "cannot determine the kernel package (apt-cache depends linux-image-amd64 gave nothing; run apt-get update)"
+fi
+kver=${kpkg#linux-image-}
+kdir=$cache/$kpkg
+
+# Modules to load (and their dependencies, resolved by modprobe).
+base_modules=(virtio_pci 9pnet_virtio 9p can can_raw can_dev vcan sch_tbf)
+media_modules=(vivid)
+# The cache is rebuilt when the module selection changes.
+cache_key="modules: ${base_modules[*]} / ${media_modules[*]}"
+
+if [ ! -f "$kdir/ready" ] || [ "$(cat "$kdir/ready")" != "$cache_key" ]; then
+  log "preparing kernel $kver in $kdir (one-time download of $kpkg, ~70 MB)"
+  rm -rf "$kdir" "$cache/extract"
+  mkdir -p "$cache/debs" "$cache/extract"
+  (cd "$cache/debs" && rm -f "$kpkg"_*.deb && apt-get download -q "$kpkg") ||
+    die "apt-get download $kpkg failed (is the Debian archive reachable? try apt-get update)"
+  deb=$(ls "$cache/debs/$kpkg"_*.deb | head -n1)
+  dpkg -x "$deb" "$cache/extract" || die "dpkg -x $deb failed"
+  src=$cache/extract
+  [ -f "$src/boot/vmlinuz-$kver" ] || die "no boot/vmlinuz-$kver in $deb"
+  depmod -b "$src" "$kver" || die "depmod -b $src $kver failed"
+
+  mkdir -p "$kdir/modules"
+  cp "$src/boot/vmlinuz-$kver" "$kdir/vmlinuz"
+  resolve() {  # prints module paths (relative to the extract) in load order
+    local m
+    for m in "$@"; do
+      modprobe -d "$src" -S "$kver" --show-depends "$m" ||
+        die "module $m not found in $kpkg"
+    done | awk '$1 == "insmod" {print $2}' | awk '!seen[$0]++'
+  }
+  copy_list() {  # $1 = list file; copies modules flat, writes names in load order
+    local p name
+    : >"$1"
+    while read -r p; do
+      name=$(basename "$p")
+      case "$name" in
+        *.ko.xz) xz -dc "$p" >"$kdir/modules/${name%.xz}"; name=${name%.xz} ;;
+        *.ko.zst) zstd -qdc "$p" >"$kdir/modules/${name%.zst}"; name=${name%.zst} ;;
+        *.ko) cp "$p" "$kdir/modules/$name" ;;
+        *) die "unexpected module file $p" ;;
+      esac
+      echo "$name" >>"$1"
+    done
+  }
+  resolve "${base_modules[@]}" | copy_list "$kdir/base.load"
+  resolve "${media_modules[@]}" | grep -vxF -f <(resolve "${base_modules[@]}") |
+    copy_list "$kdir/media.load" || true
+  [ -s "$kdir/base.load" ] || die "no modules resolved for ${base_modules[*]}"
+  echo "$kver" >"$kdir/version"
+  rm -rf "$cache/extract" "$cache/debs"
+  echo "$cache_key" >"$kdir/ready"
+  log "kernel ready: $(wc -l <"$kdir/base.load") base modules, $(wc -l <"$kdir/media.load") media modules"
+fi
+
+if [ "$prepare_only" = 1 ]; then
+  log "prepared $kdir"
+  exit 0
+fi
+
+# ------------------------------------------------------------------ VM: initramfs
+
+build_initramfs() {  # $1 = output file, $2 = init script text
+  local root
+  root=$(mktemp -d "$results/initramfs.XXXXXX")
+  mkdir -p "$root/bin" "$root/lib/modules" "$root/proc" "$root/sys" "$root/dev" \
+    "$root/newroot" "$root/results"
+  cp "$busybox" "$root/bin/busybox"
+  cp "$kdir"/modules/*.ko "$root/lib/modules/"
+  cp "$kdir/base.load" "$root/base.load"
+  if [ "$with_vivid" = 1 ]; then cp "$kdir/media.load" "$root/media.load"; else : >"$root/media.load"; fi
+  printf '%s\n' "$2" >"$root/init"
+  chmod 755 "$root/init"
+  (cd "$root" && find . -print0 | cpio --null -o -H newc --quiet | gzip -1) >"$1"
+  rm -rf "$root"
+}
+
+read -r -d '' init_script <<'INIT' || true
+#!/bin/busybox sh
+/bin/busybox --install -s /bin
+export PATH=/bin
+mount -t proc proc /proc
+mount -t sysfs sys /sys
+mount -t devtmpfs dev /dev
+say() { echo "MARKLOOP-HIL: $*"; }
+say "init started"
+fatal() {
+  say "FATAL: $*"
+  [ -d /results/out ] && echo "$*" >/results/out/fatal
+  sync
+  poweroff -f
+}
+for list in /base.load /media.load; do
+  while read -r m; do
+    [ -n "$m" ] || continue
+    args=
+    [ "$m" = vivid.ko ] && args="n_devs=1 node_types=0x101"
+    insmod "/lib/modules/$m" $args || say "insmod $m failed"
+  done <"$list"
+done
+mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144 results /results || fatal "cannot mount the results share"
+[ -f /results/probe ] && { say "probe ok"; echo ok >/results/out/probe; sync; poweroff -f; }
+mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144,cache=loose,ro hostroot /newroot ||
+  fatal "cannot mount the host root over 9p"
+R=/newroot
+mount -t tmpfs -o mode=1777 tmpfs $R/tmp || fatal "cannot mount tmpfs on /tmp"
+mount -t proc proc $R/proc
+mount -t sysfs sys $R/sys
+mount -t devtmpfs dev $R/dev
+mkdir -p $R/dev/pts $R/dev/shm
+mount -t devpts devpts $R/dev/pts
+mount -t tmpfs tmpfs $R/dev/shm
+mount -t tmpfs tmpfs $R/run
+mkdir -p $R/tmp/hil-share
+mount -o bind /results $R/tmp/hil-share || fatal "cannot bind the results share"
+ENV="PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin HOME=/tmp LANG=C.UTF-8 HIL_RESULTS=/tmp/hil-share/out HIL_IN_VM=1"
+chroot $R /usr/bin/env -i $ENV /bin/sh -c 'ip link set lo up && ip link add dev vcan0 type vcan && ip link set vcan0 up' ||
+  fatal "cannot create vcan0"
+say "vcan0 up, running commands"
+cwd=$(cat /results/cwd)
+for f in /results/cmds/*; do
+  id=${f##*/}
+  say "command $id start"
+  chroot $R /usr/bin/env -i $ENV HIL_CWD="$cwd" /bin/sh -c 'cd "$HIL_CWD" && exec /bin/sh "$0"' "/tmp/hil-share/cmds/$id" \
+    >/results/out/$id.log 2>&1 </dev/null
+  rc=$?
+  echo $rc >/results/out/$id.rc
+  sync
+  say "command $id exit $rc"
+done
+echo done >/results/out/done
+sync
+umount $R/tmp/hil-share 2>/dev/null
+umount /results 2>/dev/null
+say "powering off"
+poweroff -f
+INIT
+
+# Commands travel through the results share (/tmp/hil-share/cmds in the guest).
+i=0
+for c in "${commands[@]}"; do
+  printf '%s\n' "$c" >"$results/cmds/$(printf '%02d' "$i")"
+  i=$((i + 1))
+done
+echo "$workdir" >"$results/cwd"
+
+initrd=$results/initrd.gz
+rm -f "$results/probe"
+build_initramfs "$initrd" "$init_script"
+
+# ------------------------------------------------------------------ VM: boot
+
+qemu_boot() {  # $1 = accel, $2 = timeout seconds, $3 = console log
+  local rc=0
+  timeout -k 10 "$2" qemu-system-x86_64 \
+    -accel "$1" -cpu "$([ "$1" = kvm ] && echo host || echo max)" -m 1024 -smp 2 \
+    -display none -no-reboot -monitor none -serial "file:$3" \
+    -kernel "$kdir/vmlinuz" -initrd "$initrd" \
+    -append "console=ttyS0 quiet panic=-1" \
+    -virtfs local,path=/,mount_tag=hostroot,security_model=none,readonly=on,multidevs=remap \
+    -virtfs "local,path=$results,mount_tag=results,security_model=none,multidevs=remap" \
+    </dev/null >"$3.qemu" 2>&1 || rc=$?
+  return $rc
+}
+
+choose_accel() {
+  if [ "$accel" != auto ]; then echo "$accel"; return; fi
+  if [ ! -r /dev/kvm ] || [ ! -w /dev/kvm ]; then echo tcg; return; fi
+  local probe_file=$cache/kvm-probe-$(uname -r)-$kver
+  if [ ! -f "$probe_file" ]; then
+    log "probing whether KVM boots a guest here (once; cached in $probe_file)"
+    touch "$results/probe"
+    if qemu_boot kvm 30 "$results/probe-console.log" && [ -f "$results/out/probe" ]; then
+      echo kvm >"$probe_file"
+    else
+      echo tcg >"$probe_file"
+    fi
+    rm -f "$results/probe" "$results/out/probe"
+  fi
+  cat "$probe_file"
+}
+
+chosen=$(choose_accel)
+log "booting $kpkg with -accel $chosen (timeout ${timeout_s}s), ${#commands[@]} command(s); logs in $results"
+start=$(date +%s)
+boot_rc=0
+qemu_boot "$chosen" "$timeout_s" "$results/console.log" || boot_rc=$?
+elapsed=$(($(date +%s) - start))
+log "VM finished after ${elapsed}s (qemu status $boot_rc)"
+
+if [ "$boot_rc" = 124 ] || [ "$boot_rc" = 137 ]; then
+  echo "run-in-vm: ERROR: the VM did not finish within ${timeout_s}s" >&2
+fi
+if ! grep -q "MARKLOOP-HIL: init started" "$results/console.log" 2>/dev/null; then
+  echo "run-in-vm: ERROR: the VM did not start (no init marker on the console)" >&2
+  echo "---- qemu output:" >&2; cat "$results/console.log.qemu" >&2 || true
+  echo "---- console:" >&2; tail -n 50 "$results/console.log" >&2 || true
+  exit 1
+fi
+status=0
+summarize || status=1
+if [ ! -f "$results/out/done" ]; then
+  echo "run-in-vm: ERROR: the guest did not finish all commands" >&2
+  status=1
+fi
+if [ "$status" != 0 ]; then
+  echo "---- guest console (last 60 lines):"
+  tail -n 60 "$results/console.log" || true
+fi
+exit $status
