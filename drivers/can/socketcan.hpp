@@ -146,9 +146,11 @@ class SocketCan final : public CanFrameSink {
   std::size_t tx_pending() const noexcept { return tx_.size(); }
 
   // Reads the next data frame into `out` (timestamp from the kernel).
-  // Error frames are consumed and decoded on the way. Returns {} with a
-  // frame, resource_unavailable_try_again when nothing is pending, or the
-  // state errors of send().
+  // Error frames are consumed and decoded on the way (at most 64 per call,
+  // so an error-frame storm cannot starve the caller's loop). Returns {} with
+  // a frame, resource_unavailable_try_again when nothing (more) is pending
+  // for now, or the state errors of send(). Counters are cumulative over the
+  // object's lifetime (open()/close() do not reset them).
   std::error_code receive(CanFrame& out) noexcept;
 
   // Waits up to `timeout` for receive() to have something to do ({}), or
