@@ -54,7 +54,14 @@ class Process {
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_addopen(&actions, 1, output.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     posix_spawn_file_actions_adddup2(&actions, 1, 2);
-    if (posix_spawnp(&pid_, args[0], &actions, nullptr, args.data(), environ) != 0) pid_ = -1;
+    // Its own process group, so stop() also ends what it started (a shell
+    // loop's running cangen would otherwise outlive it and flood later tests).
+    posix_spawnattr_t attributes;
+    posix_spawnattr_init(&attributes);
+    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
+    posix_spawnattr_setpgroup(&attributes, 0);
+    if (posix_spawnp(&pid_, args[0], &actions, &attributes, args.data(), environ) != 0) pid_ = -1;
+    posix_spawnattr_destroy(&attributes);
     posix_spawn_file_actions_destroy(&actions);
   }
   ~Process() { stop(); }
@@ -62,10 +69,11 @@ class Process {
   Process& operator=(const Process&) = delete;
 
   bool started() const { return pid_ > 0; }
-  // SIGTERM, then wait; returns the raw wait status (or -1).
+  // Signals the whole process group (SIGTERM), then waits for the leader;
+  // returns its raw wait status (or -1).
   int stop(int sig = SIGTERM) {
     if (pid_ <= 0) return -1;
-    ::kill(pid_, sig);
+    ::kill(-pid_, sig);
     int status = 0;
     ::waitpid(pid_, &status, 0);
     pid_ = -1;

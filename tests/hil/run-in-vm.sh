@@ -20,8 +20,9 @@
 #
 # Each command runs under /bin/sh -c in the directory this script was called
 # from, as root, with HIL_RESULTS (a writable directory whose files are kept
-# in <results>/out on the host) and HIL_IN_VM=1|0 set. In the VM /tmp is a
-# fresh tmpfs; everything else of the host is read-only.
+# in <results>/out on the host), TMPDIR (writable scratch) and HIL_IN_VM=1|0
+# set. In the VM everything of the host, /tmp included, is read-only; scratch
+# space and results live under /run.
 #
 # Options:
 #   --cache DIR      download/kernel cache (env MARKLOOP_HIL_CACHE)
@@ -280,17 +281,19 @@ mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144 results /results || fa
 mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144,cache=loose,ro hostroot /newroot ||
   fatal "cannot mount the host root over 9p"
 R=/newroot
-mount -t tmpfs -o mode=1777 tmpfs $R/tmp || fatal "cannot mount tmpfs on /tmp"
 mount -t proc proc $R/proc
 mount -t sysfs sys $R/sys
 mount -t devtmpfs dev $R/dev
 mkdir -p $R/dev/pts $R/dev/shm
 mount -t devpts devpts $R/dev/pts
 mount -t tmpfs tmpfs $R/dev/shm
-mount -t tmpfs tmpfs $R/run
-mkdir -p $R/tmp/hil-share
-mount -o bind /results $R/tmp/hil-share || fatal "cannot bind the results share"
-ENV="PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin HOME=/tmp LANG=C.UTF-8 HIL_RESULTS=/tmp/hil-share/out HIL_IN_VM=1"
+# Scratch space lives under /run: a tmpfs over /tmp would hide a checkout or
+# build tree that lives under the host's /tmp (CI may clone there).
+mount -t tmpfs -o mode=1777 tmpfs $R/run || fatal "cannot mount tmpfs on /run"
+mkdir -p $R/run/hil-tmp $R/run/hil-share
+chmod 1777 $R/run/hil-tmp
+mount -o bind /results $R/run/hil-share || fatal "cannot bind the results share"
+ENV="PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin HOME=/run/hil-tmp TMPDIR=/run/hil-tmp LANG=C.UTF-8 HIL_RESULTS=/run/hil-share/out HIL_IN_VM=1"
 chroot $R /usr/bin/env -i $ENV /bin/sh -c 'ip link set lo up && ip link add dev vcan0 type vcan && ip link set vcan0 up' ||
   fatal "cannot create vcan0"
 say "vcan0 up, running commands"
@@ -298,7 +301,7 @@ cwd=$(cat /results/cwd)
 for f in /results/cmds/*; do
   id=${f##*/}
   say "command $id start"
-  chroot $R /usr/bin/env -i $ENV HIL_CWD="$cwd" /bin/sh -c 'cd "$HIL_CWD" && exec /bin/sh "$0"' "/tmp/hil-share/cmds/$id" \
+  chroot $R /usr/bin/env -i $ENV HIL_CWD="$cwd" /bin/sh -c 'cd "$HIL_CWD" && exec /bin/sh "$0"' "/run/hil-share/cmds/$id" \
     >/results/out/$id.log 2>&1 </dev/null
   rc=$?
   echo $rc >/results/out/$id.rc
@@ -307,13 +310,13 @@ for f in /results/cmds/*; do
 done
 echo done >/results/out/done
 sync
-umount $R/tmp/hil-share 2>/dev/null
+umount $R/run/hil-share 2>/dev/null
 umount /results 2>/dev/null
 say "powering off"
 poweroff -f
 INIT
 
-# Commands travel through the results share (/tmp/hil-share/cmds in the guest).
+# Commands travel through the results share (/run/hil-share/cmds in the guest).
 i=0
 for c in "${commands[@]}"; do
   printf '%s\n' "$c" >"$results/cmds/$(printf '%02d' "$i")"
