@@ -184,9 +184,14 @@ void SequenceDatabase::prefetch_eviction() const {
 }
 
 bool SequenceDatabase::add_sequence(std::span<const LandmarkId> ids) {
-  prefetch_eviction();
   SequenceShape shape;
   if (!shape_of(ids, shape)) return false;
+  add_sequence(ids, shape);
+  return true;
+}
+
+void SequenceDatabase::add_sequence(std::span<const LandmarkId> ids, const SequenceShape& shape) {
+  prefetch_eviction();
   std::array<std::uint32_t, kMaxSequenceLength> bins{};
   for (unsigned i = 1; i < k_; ++i) bins[i - 1] = quantiser_.bin(shape.distances[i]);
   const std::uint32_t tag =
@@ -210,7 +215,6 @@ bool SequenceDatabase::add_sequence(std::span<const LandmarkId> ids) {
     sequence_newer_[slots_[i].head] = seq;
   }
   slots_[i].head = seq;
-  return true;
 }
 
 bool SequenceDatabase::sequence_live(std::uint32_t seq) const {

@@ -89,6 +89,9 @@ class SequenceDatabase {
   // Stores a sequence of k live landmark ids; returns false (and stores
   // nothing) when an id is not live.
   bool add_sequence(std::span<const LandmarkId> ids);
+  // The same with the shape already computed by shape_of(ids), as the engine
+  // has it from querying the sequence first.
+  void add_sequence(std::span<const LandmarkId> ids, const SequenceShape& shape);
 
   // Shape of the sequence made of these landmark ids; false if one is not live.
   bool shape_of(std::span<const LandmarkId> ids, SequenceShape& shape) const;

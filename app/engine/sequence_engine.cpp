@@ -155,11 +155,17 @@ void SequenceEngine::chain(LandmarkId id, MatchSink& sink) {
       ++counters_.sequences_capped;
     } else {
       ++made;
-      if (match(sequence, candidate) && (!found || candidate.residual_m < best_.residual_m)) {
-        best_ = candidate;
-        found = true;
+      // One shape serves the query and the insertion.
+      SequenceShape shape;
+      if (database_.shape_of(sequence, shape)) {
+        if (match(sequence, shape, candidate) &&
+            (!found || candidate.residual_m < best_.residual_m)) {
+          best_ = candidate;
+          found = true;
+        }
+        database_.add_sequence(sequence, shape);
+        ++counters_.sequences_created;
       }
-      if (database_.add_sequence(sequence)) ++counters_.sequences_created;
     }
     unsigned r = 0;
     while (r + 1 < k && choice[r] + 1 == rows_[r].members.size()) choice[r++] = 0;
@@ -172,11 +178,10 @@ void SequenceEngine::chain(LandmarkId id, MatchSink& sink) {
   }
 }
 
-bool SequenceEngine::match(std::span<const LandmarkId> query, MatchEvent& best) {
+bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShape& shape,
+                           MatchEvent& best) {
   const unsigned k = config_.chain.k;
   const MatchConfig& mc = config_.match;
-  SequenceShape shape;
-  if (!database_.shape_of(query, shape)) return false;
   ++counters_.queries;
 
   std::array<Eigen::Vector2d, kMaxSequenceLength> query_points;

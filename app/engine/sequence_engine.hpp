@@ -103,7 +103,7 @@ class SequenceEngine {
   void release(Landmark landmark, MatchSink& sink);
   void chain(LandmarkId id, MatchSink& sink);
   // Best verified match of one new sequence; false when there is none.
-  bool match(std::span<const LandmarkId> query, MatchEvent& best);
+  bool match(std::span<const LandmarkId> query, const SequenceShape& shape, MatchEvent& best);
 
   EngineConfig config_;
   LandmarkTracker tracker_;
