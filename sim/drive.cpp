@@ -17,16 +17,16 @@ Drive::Drive(const Scenario& scenario, const DriveConfig& config, std::uint64_t 
                                             config.speed_mps * config.fps)),
       cell_size_(config.view_far_m + 5.0) {
   for (std::uint32_t i = 0; i < scenario.markings.size(); ++i)
-    grid_[cell_key(scenario.markings[i].x, scenario.markings[i].y)].push_back(i);
+    grid_[cell_key(cell_of(scenario.markings[i].x), cell_of(scenario.markings[i].y))].push_back(i);
   estimate_ = scenario.road.at(0.0);
   previous_truth_ = estimate_;
 }
 
-std::int64_t Drive::cell_key(double x, double y) const {
-  const auto cx = static_cast<std::int64_t>(std::floor(x / cell_size_));
-  const auto cy = static_cast<std::int64_t>(std::floor(y / cell_size_));
-  return cx * 1000003 + cy;
+std::int64_t Drive::cell_of(double coordinate) const {
+  return static_cast<std::int64_t>(std::floor(coordinate / cell_size_));
 }
+
+std::int64_t Drive::cell_key(std::int64_t cx, std::int64_t cy) { return cx * 1000003 + cy; }
 
 bool Drive::next(DriveFrame& out) {
   if (frame_ >= frame_count_) return false;
@@ -69,11 +69,11 @@ bool Drive::next(DriveFrame& out) {
   };
 
   const Pose2 to_vehicle = inverse(truth);
-  const std::int64_t cx = static_cast<std::int64_t>(std::floor(truth.x / cell_size_));
-  const std::int64_t cy = static_cast<std::int64_t>(std::floor(truth.y / cell_size_));
+  const std::int64_t cx = cell_of(truth.x);
+  const std::int64_t cy = cell_of(truth.y);
   for (std::int64_t dx = -1; dx <= 1; ++dx) {
     for (std::int64_t dy = -1; dy <= 1; ++dy) {
-      const auto cell = grid_.find((cx + dx) * 1000003 + (cy + dy));
+      const auto cell = grid_.find(cell_key(cx + dx, cy + dy));
       if (cell == grid_.end()) continue;
       for (const std::uint32_t index : cell->second) {
         const Marking& m = scenario_.markings[index];

@@ -48,7 +48,9 @@ class Drive {
   bool next(DriveFrame& out);
 
  private:
-  std::int64_t cell_key(double x, double y) const;
+  // The markings are kept in a grid of cells a camera footprint wide.
+  std::int64_t cell_of(double coordinate) const;
+  static std::int64_t cell_key(std::int64_t cx, std::int64_t cy);
 
   const Scenario& scenario_;
   DriveConfig config_;

@@ -66,6 +66,12 @@ struct NaiveMatcher {
   struct Entry {
     std::array<Label, kK> labels;
     std::array<float, kK> distances;
+    static Entry of(const SequenceShape& shape) {
+      Entry e;
+      std::copy_n(shape.labels.begin(), kK, e.labels.begin());
+      std::copy_n(shape.distances.begin(), kK, e.distances.begin());
+      return e;
+    }
   };
   std::vector<Entry> entries;
   float tolerance = 0.5f;
@@ -116,10 +122,7 @@ Row measure(std::size_t size, std::size_t samples, std::size_t naive_samples) {
   while (stored < size) {
     if (!add_next(shape)) continue;
     db.add_sequence(ids);
-    NaiveMatcher::Entry e;
-    std::copy_n(shape.labels.begin(), kK, e.labels.begin());
-    std::copy_n(shape.distances.begin(), kK, e.distances.begin());
-    naive.entries.push_back(e);
+    naive.entries.push_back(NaiveMatcher::Entry::of(shape));
     ++stored;
   }
 
@@ -161,10 +164,7 @@ Row measure(std::size_t size, std::size_t samples, std::size_t naive_samples) {
     if (s < naive_samples) {
       const auto naive_start = Clock::now();
       sink += naive.match(shape);
-      NaiveMatcher::Entry e;
-      std::copy_n(shape.labels.begin(), kK, e.labels.begin());
-      std::copy_n(shape.distances.begin(), kK, e.distances.begin());
-      naive.entries[s % size] = e;  // same fixed size as the indexed database
+      naive.entries[s % size] = NaiveMatcher::Entry::of(shape);  // fixed size, like the database
       naive_ns.push_back(std::chrono::duration<double, std::nano>(Clock::now() - naive_start).count());
     }
   }
