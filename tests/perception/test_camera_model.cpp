@@ -1,0 +1,130 @@
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <string>
+
+#include <catch2/catch_approx.hpp>
+#include <catch2/catch_test_macros.hpp>
+
+#include "perception/camera_model.hpp"
+
+using namespace markloop::perception;
+using Catch::Approx;
+
+namespace {
+
+std::filesystem::path scratch(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / "markloop-camera-tests";
+  std::filesystem::create_directories(dir);
+  return dir / name;
+}
+
+void write_file(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
+
+}  // namespace
+
+TEST_CASE("Pinhole camera: ground to image and back is the identity") {
+  const CameraModel camera = default_camera_model();
+  for (double x = 3.0; x <= 40.0; x += 1.7) {
+    for (double y = -6.0; y <= 6.0; y += 0.9) {
+      Eigen::Vector2d pixel, ground;
+      REQUIRE(camera.ground_to_image({x, y}, pixel));
+      REQUIRE(camera.image_to_ground(pixel, ground));
+      CHECK(ground.x() == Approx(x).margin(1e-6 * x * x));
+      CHECK(ground.y() == Approx(y).margin(1e-6 * x * x));
+    }
+  }
+}
+
+TEST_CASE("Pinhole camera: geometry follows the mounting") {
+  CameraMounting mount;
+  mount.height_m = 1.2;
+  mount.pitch_rad = 10.0 * std::numbers::pi / 180.0;
+  PinholeIntrinsics k{800.0, 800.0, 400.0, 300.0, {}};
+  const CameraModel camera = CameraModel::pinhole(800, 600, k, mount);
+  // The optical axis meets the ground at height / tan(pitch), straight ahead.
+  Eigen::Vector2d ground;
+  REQUIRE(camera.image_to_ground({400.0, 300.0}, ground));
+  CHECK(ground.x() == Approx(1.2 / std::tan(mount.pitch_rad)));
+  CHECK(ground.y() == Approx(0.0).margin(1e-9));
+  // Points to the left of the car appear left in the image.
+  Eigen::Vector2d pixel;
+  REQUIRE(camera.ground_to_image({10.0, 2.0}, pixel));
+  CHECK(pixel.x() < 400.0);
+  // Above the horizon there is no ground; behind the camera no pixel.
+  CHECK_FALSE(camera.image_to_ground({400.0, 0.0}, ground));
+  CHECK_FALSE(camera.ground_to_image({-5.0, 0.0}, pixel));
+}
+
+TEST_CASE("Camera files round-trip through OpenCV YAML") {
+  const auto path = scratch("default.yaml").string();
+  std::string error;
+  REQUIRE(save_camera_model(default_camera_model(), path, error));
+  const auto loaded = load_camera_model(path, error);
+  REQUIRE(loaded);
+  CHECK(loaded->width() == 1280);
+  CHECK(loaded->height() == 512);
+  Eigen::Vector2d a, b;
+  REQUIRE(default_camera_model().ground_to_image({12.0, 1.5}, a));
+  REQUIRE(loaded->ground_to_image({12.0, 1.5}, b));
+  CHECK((a - b).norm() < 1e-6);
+}
+
+TEST_CASE("Homography cameras map through the matrix") {
+  const auto path = scratch("homography.yaml").string();
+  write_file(path,
+             "%YAML:1.0\n---\nimage_width: 800\nimage_height: 600\n"
+             "ground_homography: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+             "  data: [ 0.0, -0.1, 60.0, -0.05, 0.0, 20.0, 0.0, 0.0, 1.0 ]\n");
+  std::string error;
+  const auto camera = load_camera_model(path, error);
+  REQUIRE(camera);
+  CHECK_FALSE(camera->is_pinhole());
+  Eigen::Vector2d ground, pixel;
+  REQUIRE(camera->image_to_ground({400.0, 500.0}, ground));
+  CHECK(ground.x() == Approx(10.0));
+  CHECK(ground.y() == Approx(0.0).margin(1e-9));
+  REQUIRE(camera->ground_to_image(ground, pixel));
+  CHECK(pixel.x() == Approx(400.0));
+  CHECK(pixel.y() == Approx(500.0));
+}
+
+TEST_CASE("Bad calibration files are refused with the path and the reason") {
+  std::string error;
+  CHECK_FALSE(load_camera_model(scratch("missing.yaml").string(), error));
+  CHECK(error.find("missing.yaml") != std::string::npos);
+
+  const auto garbage = scratch("garbage.yaml");
+  write_file(garbage, "%YAML:1.0\n---\nimage_width: [ unbalanced\n");
+  CHECK_FALSE(load_camera_model(garbage.string(), error));
+  CHECK(error.find("garbage.yaml") != std::string::npos);
+
+  const auto no_mount = scratch("no_mount.yaml");
+  write_file(no_mount,
+             "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+             "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+             "  data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\n");
+  CHECK_FALSE(load_camera_model(no_mount.string(), error));
+  CHECK(error.find("mount_height") != std::string::npos);
+
+  const auto bad_size = scratch("bad_size.yaml");
+  write_file(bad_size, "%YAML:1.0\n---\nimage_width: -3\nimage_height: 480\n");
+  CHECK_FALSE(load_camera_model(bad_size.string(), error));
+  CHECK(error.find("out of range") != std::string::npos);
+}
+
+TEST_CASE("The shipped default calibration is the built-in default") {
+  std::string error;
+  const auto shipped = load_camera_model(MARKLOOP_SOURCE_DIR "/app/cameras/sim.yaml", error);
+  INFO(error);
+  REQUIRE(shipped);
+  Eigen::Vector2d a, b;
+  for (const Eigen::Vector2d& g : {Eigen::Vector2d(5, 0), Eigen::Vector2d(20, -4), Eigen::Vector2d(9, 3)}) {
+    REQUIRE(default_camera_model().ground_to_image(g, a));
+    REQUIRE(shipped->ground_to_image(g, b));
+    CHECK((a - b).norm() < 1e-3);
+  }
+}
