@@ -1,7 +1,9 @@
 #include "platform/syscall.hpp"
 
 #include <poll.h>
+#include <fcntl.h>
 #include <sys/ioctl.h>
+#include <sys/mman.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
@@ -56,6 +58,25 @@ std::error_code sys_setsockopt(int fd, int level, int name, const void* value,
 std::error_code sys_ioctl(int fd, unsigned long request, void* arg) noexcept {
   const int r = retry_eintr([&] { return ::ioctl(fd, request, arg); });
   return r < 0 ? last_error() : std::error_code{};
+}
+
+std::error_code sys_open(const char* path, int flags, int& fd_out) noexcept {
+  fd_out = retry_eintr([&] { return ::open(path, flags); });
+  return fd_out < 0 ? last_error() : std::error_code{};
+}
+
+std::error_code sys_mmap_shared(int fd, std::size_t length, long offset, void*& out) noexcept {
+  void* p = ::mmap(nullptr, length, PROT_READ | PROT_WRITE, MAP_SHARED, fd, offset);
+  if (p == MAP_FAILED) {
+    out = nullptr;
+    return last_error();
+  }
+  out = p;
+  return {};
+}
+
+void sys_munmap(void* address, std::size_t length) noexcept {
+  if (address != nullptr) ::munmap(address, length);
 }
 
 IoResult sys_recvmsg(int fd, msghdr* msg, int flags) noexcept {

@@ -34,6 +34,11 @@ std::error_code sys_bind(int fd, const sockaddr* addr, unsigned len) noexcept;
 std::error_code sys_setsockopt(int fd, int level, int name, const void* value,
                                unsigned len) noexcept;
 std::error_code sys_ioctl(int fd, unsigned long request, void* arg) noexcept;
+// open(2) of a path (device nodes); the new descriptor goes to fd_out.
+std::error_code sys_open(const char* path, int flags, int& fd_out) noexcept;
+// Shared read/write mapping of `length` bytes at `offset` (device buffers).
+std::error_code sys_mmap_shared(int fd, std::size_t length, long offset, void*& out) noexcept;
+void sys_munmap(void* address, std::size_t length) noexcept;
 IoResult sys_recvmsg(int fd, msghdr* msg, int flags) noexcept;
 IoResult sys_write(int fd, const void* data, std::size_t size) noexcept;
 IoResult sys_read(int fd, void* data, std::size_t size) noexcept;
