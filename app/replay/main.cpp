@@ -294,7 +294,7 @@ int main(int argc, char** argv) {
       }
       std::vector<FramePair> pairs = frame_pairs(result.matches);
       std::printf("matches: %zu\n", result.matches.size());
-      if (judge) print_evaluation(judge->evaluate(pairs, &result.matches));
+      if (judge) print_evaluation(judge->evaluate(pairs, relative_poses(result.matches)));
       return pairs;
     }
     return frame_pairs(result.matches);

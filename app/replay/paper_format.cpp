@@ -191,13 +191,15 @@ bool load_kitti_poses(const std::string& path, std::vector<Pose2>& poses, std::s
   return read_kitti_lines(in, path, 1, poses, error);
 }
 
-bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error) {
+bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error,
+                std::vector<double>* times) {
   std::ifstream in(path);
   if (!in) {
     error = path + ": cannot open file";
     return false;
   }
   poses.clear();
+  if (times != nullptr) times->clear();
   std::string header;
   std::getline(in, header);
   if (trim(header) != "frame,t,x,y,yaw") {
@@ -221,6 +223,7 @@ bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string&
       return false;
     }
     poses.push_back({values[2], values[3], values[4]});
+    if (times != nullptr) times->push_back(values[1]);
   }
   return true;
 }

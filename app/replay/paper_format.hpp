@@ -41,8 +41,10 @@ bool load_markings(const std::string& path, std::vector<MarkingRecord>& records,
 // frame i, converted to the ground frame (x ahead = z, y left = -x).
 bool load_kitti_poses(const std::string& path, std::vector<Pose2>& poses, std::string& error);
 // Ground truth per frame: the simulator's frames.csv (header frame,t,x,y,yaw)
-// or KITTI poses.
-bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error);
+// or KITTI poses. `times`, when given, receives frames.csv's t per frame
+// (left empty for KITTI poses, which carry no time).
+bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error,
+                std::vector<double>* times = nullptr);
 
 // The paper's camera-style axes to the engine's ground frame.
 inline Observation to_ground(const MarkingRecord& r, Label label) {

@@ -50,7 +50,7 @@ TEST_CASE("the engine closes the loops of simulated drives without a false one",
       INFO("scenario " << name << " seed " << seed);
       const DriveResult r = drive(name, seed);
       const replay::TruthJudge judge(r.truth, 10.0, 100.0);
-      const auto evaluation = judge.evaluate(replay::frame_pairs(r.events), &r.events);
+      const auto evaluation = judge.evaluate(replay::frame_pairs(r.events), replay::relative_poses(r.events));
       CHECK(evaluation.wrong == 0);
       CHECK(evaluation.correct > 10);
       CHECK(evaluation.revisit_segments_detected * 10 >= evaluation.revisit_segments * 8);
