@@ -1,0 +1,61 @@
+// Bird's-eye (inverse perspective) view of a rectangle of road in front of
+// the vehicle. The lookup table (source offset and bilinear weights per
+// output pixel) is computed once from the camera model; warping a frame is
+// then a table walk, with no allocation.
+//
+// Output layout: row 0 is the far edge (x_far_m), the last row the near edge;
+// column 0 is the left edge (y_left_m), the last column the right edge.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "perception/camera_model.hpp"
+
+namespace markloop::perception {
+
+struct BirdsEyeRegion {
+  float x_near_m = 3.0f;   // ahead of the vehicle reference point
+  float x_far_m = 20.0f;
+  float y_left_m = 6.0f;   // left of the vehicle reference point
+  float y_right_m = -6.0f;
+  float x_step_m = 0.05f;  // metres per output row (along the road)
+  float y_step_m = 0.04f;  // metres per output column (across the road)
+};
+
+class BirdsEyeView {
+ public:
+  // `ignore_rows_from`: source rows at or below this are not road (the
+  // bonnet); output pixels that would read them, or read outside the image,
+  // or look above the horizon, are invalid (value 0).
+  BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& region, int ignore_rows_from = -1);
+
+  int rows() const { return rows_; }
+  int cols() const { return cols_; }
+  const BirdsEyeRegion& region() const { return region_; }
+  // 255 where the output pixel sees road in the image, 0 elsewhere.
+  const cv::Mat& valid() const { return valid_; }
+
+  // `grey`: CV_8UC1 of the camera's size (checked by the caller);
+  // `out`: CV_8UC1 rows() x cols(), preallocated.
+  void warp(const cv::Mat& grey, cv::Mat& out) const;
+
+  // Ground point (vehicle frame, metres) of an output pixel position
+  // (fractional: pixel centres are at integers).
+  float ground_x(float row) const { return region_.x_far_m - (row + 0.5f) * region_.x_step_m; }
+  float ground_y(float col) const { return region_.y_left_m - (col + 0.5f) * region_.y_step_m; }
+
+ private:
+  BirdsEyeRegion region_;
+  int rows_ = 0, cols_ = 0;
+  int source_cols_ = 0, source_rows_ = 0;
+  // Per output pixel: the top-left source pixel (row -1: invalid) and
+  // bilinear weights in 1/256 (fx, fy).
+  std::vector<std::int16_t> source_row_, source_col_;
+  std::vector<std::uint8_t> weight_x_, weight_y_;
+  cv::Mat valid_;
+};
+
+}  // namespace markloop::perception

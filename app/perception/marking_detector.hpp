@@ -1,0 +1,158 @@
+// Road-marking detector: from a grey camera frame to labelled markings on
+// the ground.
+//
+//   grey frame --(lookup-table warp)--> bird's-eye view of the road region
+//     --> bright paint: pixel above the local road brightness (integral image)
+//     --> connected regions (run-length union-find), lane lines set apart
+//     --> groups: parts close along and across the road (letters of a word,
+//         digits of a number, crosswalk stripes) become one candidate
+//     --> features (HOG of the normalised patch, occupancy, size)
+//     --> small MLP with an explicit reject class
+//     --> Detection: label, score, quad in the image, centre on the ground.
+//
+// Everything is sized in the constructor; detect() does not touch the heap.
+// Not thread-safe: one detector per camera thread.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "engine/types.hpp"
+#include "perception/birdseye.hpp"
+#include "perception/camera_model.hpp"
+#include "perception/marking_features.hpp"
+
+namespace markloop::perception {
+
+struct MlpModel;
+
+struct Detection {
+  Label label;                               // index into kMarkingClassNames
+  float score;                               // classifier confidence 0..1
+  std::array<std::array<float, 2>, 4> quad;  // corners in the original image, pixels
+  float ground_x, ground_y;                  // centre on the road, vehicle frame, metres
+};
+inline constexpr std::size_t kMaxDetections = 32;
+
+struct DetectorConfig {
+  BirdsEyeRegion region;  // road area searched and its resolution
+  // Source rows at or below this one are not road (the car's bonnet); -1: none.
+  int ignore_image_rows_from = -1;
+  // Bright paint: brighter than the mean of a window this size around it by
+  // min_contrast grey levels or min_contrast_ratio of the mean, whichever is larger.
+  float local_window_m = 1.6f;
+  int min_contrast = 14;
+  float min_contrast_ratio = 0.12f;
+  float min_part_area_m2 = 0.02f;  // smaller specks are noise
+  // Thin long parts are lane lines or kerbs: never grouped, never classified.
+  float line_max_width_m = 0.30f;
+  float line_min_length_m = 2.0f;
+  // Parts whose boxes come closer than this (along, across the road) form one marking.
+  float group_gap_along_m = 0.6f;
+  float group_gap_across_m = 0.6f;
+  float max_marking_length_m = 9.0f;  // larger groups are not markings (cars, shadows' edges)
+  float max_marking_width_m = 9.0f;
+  float min_score = 0.5f;  // below: rejected even if a marking class wins
+  // Classifier weights; nullptr: the model compiled in (model/marking_model.cpp).
+  const MlpModel* model = nullptr;
+};
+
+// Reads the optional detector_* keys of a calibration file (OpenCV YAML), so
+// one file describes a camera and the road region it sees; keys absent keep
+// `config`'s values. False with `error` = "PATH: what is wrong" on failure.
+bool load_detector_config(const std::string& path, DetectorConfig& config, std::string& error);
+
+struct DetectorCounters {
+  std::uint64_t frames = 0;
+  std::uint64_t bad_frames = 0;          // wrong size or type: not processed
+  std::uint64_t parts = 0;               // connected bright regions kept
+  std::uint64_t parts_dropped = 0;       // over capacity (kMaxParts)
+  std::uint64_t lane_lines = 0;          // thin long parts set apart
+  std::uint64_t candidates = 0;          // groups classified
+  std::uint64_t candidates_dropped = 0;  // over capacity (kMaxCandidates)
+  std::uint64_t oversize = 0;            // parts or groups too large to be a marking
+  std::uint64_t rejected = 0;            // classifier said: not a marking
+  std::uint64_t low_score = 0;           // marking class below min_score
+  std::uint64_t detections = 0;
+  std::uint64_t detections_dropped = 0;  // over kMaxDetections in one frame
+};
+
+// One group of bright parts, as classified (exposed for training and tests).
+struct Candidate {
+  // Box in bird's-eye pixels: columns left to right, rows far to near.
+  int col0, row0, col1, row1;  // inclusive
+  int parts;
+  float length_m, width_m;  // along and across the road
+  Features features;
+  int predicted;  // class index, kRejectClass for "not a marking"
+  float score;
+};
+inline constexpr std::size_t kMaxCandidates = 64;
+inline constexpr std::size_t kMaxParts = 1024;
+
+class MarkingDetector {
+ public:
+  explicit MarkingDetector(const CameraModel& camera, const DetectorConfig& config = {});
+  MarkingDetector(const MarkingDetector&) = delete;
+  MarkingDetector& operator=(const MarkingDetector&) = delete;
+
+  // `grey`: CV_8UC1 of the camera's size (other frames are counted in
+  // bad_frames and give no detections). The result stays valid until the
+  // next call.
+  std::span<const Detection> detect(const cv::Mat& grey);
+
+  const DetectorCounters& counters() const { return counters_; }
+  const DetectorConfig& config() const { return config_; }
+  const BirdsEyeView& birdseye() const { return birdseye_; }
+  // The last frame's bird's-eye image and bright-paint mask (255 = paint).
+  const cv::Mat& birdseye_image() const { return bev_; }
+  const cv::Mat& paint_mask() const { return mask_; }
+  // Every group of the last frame, classified or not.
+  std::span<const Candidate> candidates() const { return {candidates_.data(), candidate_count_}; }
+  // The quad (image pixels) and ground centre of a candidate's box.
+  void locate(const Candidate& candidate, Detection& out) const;
+
+ private:
+  struct Part {
+    int col0, row0, col1, row1;
+    int area;
+    int group;
+  };
+
+  void threshold();
+  std::size_t label_parts();
+  void group_parts(std::size_t part_count);
+  void classify(Candidate& candidate);
+
+  CameraModel camera_;
+  DetectorConfig config_;
+  BirdsEyeView birdseye_;
+  const MlpModel* model_;
+  int window_cols_ = 1, window_rows_ = 1;
+  int min_part_area_px_ = 1;
+
+  cv::Mat bev_;       // CV_8UC1 bird's-eye image
+  cv::Mat mask_;      // CV_8UC1 paint mask
+  cv::Mat integral_;        // CV_32SC1 (rows+1) x (cols+1): bird's-eye sums
+  cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (fixed)
+  std::vector<std::int32_t> pixel_labels_;  // provisional label per pixel, -1 none
+  std::vector<std::int32_t> parent_;        // union-find over provisional labels
+  std::vector<Part> label_box_;             // box and area per provisional label
+  std::vector<Part> parts_;                 // kMaxParts
+  std::vector<std::int32_t> group_parent_;     // union-find over parts
+  std::vector<std::int32_t> group_candidate_;  // group root -> candidate index
+  std::array<Candidate, kMaxCandidates> candidates_{};
+  std::size_t candidate_count_ = 0;
+  std::array<Detection, kMaxDetections> detections_{};
+  std::size_t detection_count_ = 0;
+  PatchScratch scratch_;
+  DetectorCounters counters_;
+};
+
+}  // namespace markloop::perception
