@@ -1,0 +1,76 @@
+// Readers for the simulator's truth files and the ECU's detection CSV that
+// markloop-eval compares (formats in /tmp/prompts/contracts.md, mirrored in
+// the README's Evaluation section). Every reader is strict: a malformed line
+// stops it with "FILE:LINE: what is wrong".
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "engine/types.hpp"
+
+namespace markloop::eval {
+
+// Image quadrilateral, corners in pixels, in file order.
+using Quad = std::array<std::array<double, 2>, 4>;
+
+// markings.csv: id,class,x,y,heading (world frame, metres, radians).
+struct WorldMarking {
+  std::uint32_t id = 0;
+  Label label = 0;
+  double x = 0.0;
+  double y = 0.0;
+  double heading = 0.0;
+};
+
+// visible.csv: frame,id,class,x1,y1,...,x4,y4 (a marking in view in a frame).
+struct VisibleMarking {
+  FrameIndex frame = 0;
+  std::uint32_t id = 0;
+  Label label = 0;
+  Quad quad{};
+};
+
+// The ECU's --detections-out: frame,label,score,x1,y1,...,x4,y4,ground_x,ground_y.
+struct DetectionRecord {
+  FrameIndex frame = 0;
+  Label label = 0;
+  double score = 0.0;
+  Quad quad{};
+  double ground_x = 0.0;
+  double ground_y = 0.0;
+};
+
+// Reports how far a long read has come on stderr: one line per tenth of the
+// file, and only for files of at least `min_lines` lines, so short runs stay
+// quiet.
+class Progress {
+ public:
+  Progress(std::string what, std::size_t total_lines, std::size_t min_lines = 200'000);
+  void update(std::size_t lines_done);
+  void finish();
+
+ private:
+  std::string what_;
+  std::size_t total_;
+  bool enabled_;
+  std::size_t next_tenth_ = 1;
+};
+
+// Number of lines of a file (0 when it cannot be read); for Progress.
+std::size_t count_lines(const std::string& path);
+
+// Each returns false and sets `error` on a missing file or a bad line. Frames
+// must lie in [0, frame_count) (the truth's frames). Results are sorted by
+// frame (stable).
+bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out,
+                         std::string& error);
+bool load_visible(const std::string& path, std::size_t frame_count,
+                  std::vector<VisibleMarking>& out, std::string& error);
+bool load_detections(const std::string& path, std::size_t frame_count,
+                     std::vector<DetectionRecord>& out, std::string& error);
+
+}  // namespace markloop::eval

@@ -1,0 +1,399 @@
+// markloop-eval: judges a run of the ECU against the simulator's truth: loop
+// precision and revisit recall, relative pose error, latency on the bus, and
+// marking detection/classification; draws the run as SVG and PNG.
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cli/cli.hpp"
+#include "eval/can_log.hpp"
+#include "eval/figure.hpp"
+#include "eval/inputs.hpp"
+#include "eval/scoring.hpp"
+#include "replay/paper_format.hpp"
+#include "replay/truth_judge.hpp"
+
+namespace {
+
+using namespace markloop;
+using namespace markloop::eval;
+using namespace markloop::cli;
+
+// Same as the engine's default minimum separation: a revisit is a return to
+// a place driven at least this far before (see TruthJudge).
+constexpr double kRevisitSeparation_m = 100.0;
+
+constexpr const char* kUsage = R"(usage: markloop-eval DIR [options]
+
+Judges what the markloop ECU sent on CAN for a simulated drive against the
+simulator's ground truth, prints a table of figures and draws the run.
+
+DIR holds the simulator's frames.csv (frame,t,x,y,yaw), markings.csv
+(id,class,x,y,heading) and visible.csv (frame,id,class,x1,y1,...,x4,y4), and
+by default the ECU's outputs.
+
+options:
+  --can FILE         the ECU's CAN output, candump -l log; default DIR/ecu-can.log
+  --detections FILE  the ECU's --detections-out CSV; default DIR/ecu-detections.csv
+                     (when the default file is absent the marking section is
+                     skipped with a note)
+  --tolerance M      a loop detection is correct when the true positions of its
+                     two frames are within M metres; also the radius of a
+                     revisit; default 5
+  --svg FILE         picture of the run; default DIR/loops.svg
+  --png FILE         the same picture as PNG; default DIR/loops.png
+  --json FILE        every figure as JSON, for scripts
+  --help             this text
+
+figures:
+  loop precision     correct / judged LoopDetection messages
+  revisit recall     revisited 100 m stretches of the route (places driven
+                     again at least 100 m later) with a correct detection
+  pose error         PoseDx/PoseDy/PoseDyaw of correct detections against the
+                     true pose of the car at the query in the car's frame at
+                     the match
+  latency            CAN frame timestamp of a detection's last page minus its
+                     QueryTime: median, p99, max
+  markings           a detection matches a visible marking of its frame when
+                     its quad's centre lies inside the marking's quad or their
+                     IoU is at least 0.3 (one to one); detection recall and
+                     precision (any label), classification accuracy (right
+                     label among matched), per class
+
+Exit status: 0 on success, 2 on bad input or options (FILE:LINE: what).
+)";
+
+struct Options {
+  std::string dir, can, detections, svg, png, json;
+  bool detections_given = false;
+  double tolerance = 5.0;
+};
+
+Options parse(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      std::exit(0);
+    }
+    if (!arg.starts_with("-")) {
+      if (!o.dir.empty()) fail("more than one DIR given: '" + o.dir + "' and '" + std::string(arg) + "'");
+      o.dir = arg;
+      continue;
+    }
+    if (arg != "--can" && arg != "--detections" && arg != "--tolerance" && arg != "--svg" &&
+        arg != "--png" && arg != "--json")
+      fail("unknown option " + std::string(arg) + " (see --help)");
+    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
+    const char* v = argv[++i];
+    if (arg == "--can") o.can = v;
+    else if (arg == "--detections") o.detections = v, o.detections_given = true;
+    else if (arg == "--tolerance") o.tolerance = parse_number(arg, v);
+    else if (arg == "--svg") o.svg = v;
+    else if (arg == "--png") o.png = v;
+    else if (arg == "--json") o.json = v;
+  }
+  if (o.dir.empty()) fail("DIR is required (see --help)");
+  if (!(o.tolerance > 0)) fail("--tolerance must be positive");
+  const std::filesystem::path dir(o.dir);
+  if (o.can.empty()) o.can = dir / "ecu-can.log";
+  if (o.detections.empty()) o.detections = dir / "ecu-detections.csv";
+  if (o.svg.empty()) o.svg = dir / "loops.svg";
+  if (o.png.empty()) o.png = dir / "loops.png";
+  return o;
+}
+
+double percent(std::size_t part, std::size_t whole) {
+  return whole == 0 ? 0.0 : 100.0 * static_cast<double>(part) / static_cast<double>(whole);
+}
+
+// "12.5 %" or "-" when there is nothing to divide by.
+std::string percent_text(std::size_t part, std::size_t whole) {
+  if (whole == 0) return "-";
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f %%", percent(part, whole));
+  return text;
+}
+
+double route_length_m(const std::vector<Pose2>& route) {
+  double length = 0.0;
+  for (std::size_t i = 1; i < route.size(); ++i)
+    length += std::hypot(route[i].x - route[i - 1].x, route[i].y - route[i - 1].y);
+  return length;
+}
+
+void print_rejects(const char* name, const RejectCounts& r) {
+  std::printf("  %-14s %8llu accepted, %llu rejected", name, (unsigned long long)r.accepted,
+              (unsigned long long)r.rejected());
+  if (r.rejected() > 0)
+    std::printf(" (CRC %llu, alive counter %llu, length %llu, range %llu, page %llu)",
+                (unsigned long long)r.bad_crc, (unsigned long long)r.bad_counter,
+                (unsigned long long)r.wrong_length, (unsigned long long)r.out_of_range,
+                (unsigned long long)r.unknown_page);
+  std::printf("\n");
+}
+
+void print_spread(const char* name, const Spread& s, double unit, const char* unit_name) {
+  if (s.count == 0) {
+    std::printf("  %-34s -\n", name);
+    return;
+  }
+  std::printf("  %-34s %.1f / %.1f / %.1f %s (min %.1f, %zu)\n", name, s.median * unit, s.p99 * unit,
+              s.max * unit, unit_name, s.min * unit, s.count);
+}
+
+void json_rejects(std::FILE* f, const char* name, const RejectCounts& r) {
+  std::fprintf(f,
+               "\"%s\":{\"accepted\":%llu,\"bad_crc\":%llu,\"bad_counter\":%llu,\"wrong_length\":%llu,"
+               "\"out_of_range\":%llu,\"unknown_page\":%llu}",
+               name, (unsigned long long)r.accepted, (unsigned long long)r.bad_crc,
+               (unsigned long long)r.bad_counter, (unsigned long long)r.wrong_length,
+               (unsigned long long)r.out_of_range, (unsigned long long)r.unknown_page);
+}
+
+void json_spread(std::FILE* f, const char* name, const Spread& s) {
+  std::fprintf(f, "\"%s\":{\"count\":%zu,\"median\":%.6f,\"p99\":%.6f,\"max\":%.6f,\"min\":%.6f}", name,
+               s.count, s.median, s.p99, s.max, s.min);
+}
+
+void write_json(const std::string& path, const Options& o, std::size_t frames, double length_m,
+                const EcuCanLog& log, const LoopScore& loops, const MarkingScore* markings) {
+  std::FILE* f = open_output(path);
+  const replay::Evaluation& e = loops.evaluation;
+  std::fprintf(f, "{\"frames\":%zu,\"route_length_m\":%.1f,\"tolerance_m\":%g,", frames, length_m,
+               o.tolerance);
+  std::fprintf(f, "\"can\":{\"frames\":%llu,\"other_frames\":%llu,", (unsigned long long)log.frames,
+               (unsigned long long)log.other_frames);
+  json_rejects(f, "loop_detection", log.loop_frames);
+  std::fputc(',', f);
+  json_rejects(f, "status", log.status_frames);
+  std::fprintf(f, ",\"detections_incomplete\":%llu},", (unsigned long long)log.detections_incomplete);
+  const StatusSummary& s = log.status;
+  std::fprintf(f,
+               "\"status\":{\"frames_processed\":%u,\"frames_dropped\":%u,\"loop_time_max_ms\":%.2f,"
+               "\"database_fill_percent\":%.1f,\"landmarks\":%u,\"sequences\":%u,\"last_state\":\"%s\","
+               "\"fault_frames\":{\"camera_lost\":%llu,\"odometry_timeout\":%llu,\"bus_error\":%llu,"
+               "\"overrun\":%llu}},",
+               s.last.frames_processed, s.last.frames_dropped, s.loop_time_max_ms,
+               s.last.database_fill_percent, s.last.landmark_count, s.last.sequence_count,
+               std::string(dbc::to_string(s.last.system_state)).c_str(),
+               (unsigned long long)s.camera_lost, (unsigned long long)s.odometry_timeout,
+               (unsigned long long)s.bus_error, (unsigned long long)s.overrun);
+  std::fprintf(f,
+               "\"loops\":{\"detections\":%zu,\"correct\":%zu,\"wrong\":%zu,\"unjudged\":%zu,"
+               "\"revisit_segments\":%zu,\"revisit_segments_detected\":%zu,\"pose_errors\":%zu,"
+               "\"translation_error_mean_m\":%.4f,\"translation_error_max_m\":%.4f,"
+               "\"rotation_error_mean_deg\":%.4f,\"rotation_error_max_deg\":%.4f,"
+               "\"query_time_mismatches\":%zu,",
+               loops.outcomes.size(), e.correct, e.wrong, e.unjudged, e.revisit_segments,
+               e.revisit_segments_detected, e.pose_errors, e.translation_error_mean_m,
+               e.translation_error_max_m, e.rotation_error_mean_deg, e.rotation_error_max_deg,
+               loops.query_time_mismatches);
+  json_spread(f, "latency_s", loops.latency_s);
+  std::fputc(',', f);
+  json_spread(f, "processing_s", loops.processing_s);
+  std::fprintf(f, ",\"events\":[");
+  for (std::size_t i = 0; i < loops.outcomes.size(); ++i) {
+    const LoopOutcome& l = loops.outcomes[i];
+    std::fprintf(f, "%s{\"query_frame\":%u,\"match_frame\":%u,\"verdict\":\"%s\",\"true_distance_m\":%.3f,"
+                 "\"latency_s\":%.6f",
+                 i ? "," : "", l.pair.query, l.pair.match,
+                 l.verdict == Verdict::Correct ? "correct" : l.verdict == Verdict::Wrong ? "wrong" : "unjudged",
+                 l.true_distance_m, l.latency_s);
+    if (l.pose_error)
+      std::fprintf(f, ",\"translation_error_m\":%.4f,\"rotation_error_deg\":%.4f",
+                   l.pose_error->translation_m, l.pose_error->rotation_deg);
+    std::fputc('}', f);
+  }
+  std::fprintf(f, "]}");
+  if (markings != nullptr) {
+    const MarkingScore& m = *markings;
+    std::fprintf(f, ",\"markings\":{\"visible\":%zu,\"detections\":%zu,\"matched\":%zu,\"right_label\":%zu,"
+                 "\"per_class\":{", m.truth, m.detections, m.matched, m.right_label);
+    bool first = true;
+    for (std::size_t c = 0; c < m.per_class.size(); ++c) {
+      const ClassScore& k = m.per_class[c];
+      if (k.truth == 0 && k.detections == 0) continue;
+      std::fprintf(f, "%s\"%s\":{\"visible\":%zu,\"found\":%zu,\"right_label\":%zu,\"detections\":%zu,"
+                   "\"detections_matched\":%zu}",
+                   first ? "" : ",", std::string(perception::kMarkingClassNames[c]).c_str(), k.truth,
+                   k.truth_found, k.truth_right_label, k.detections, k.detections_matched);
+      first = false;
+    }
+    std::fprintf(f, "},\"confusion\":[");
+    for (std::size_t t = 0; t < m.confusion.size(); ++t) {
+      std::fprintf(f, "%s[", t ? "," : "");
+      for (std::size_t d = 0; d < m.confusion[t].size(); ++d) std::fprintf(f, "%s%zu", d ? "," : "", m.confusion[t][d]);
+      std::fputc(']', f);
+    }
+    std::fprintf(f, "]}");
+  }
+  std::fprintf(f, "}\n");
+  close_output(f, path);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  program_name() = "markloop-eval";
+  const Options o = parse(argc, argv);
+  const std::filesystem::path dir(o.dir);
+  std::string error;
+
+  // Truth: frames.csv must be the simulator's (load_truth would also take
+  // KITTI poses, which have no times).
+  const std::string frames_path = dir / "frames.csv";
+  std::vector<Pose2> route;
+  std::vector<double> times;
+  {
+    std::FILE* f = std::fopen(frames_path.c_str(), "r");
+    if (f == nullptr) fail(frames_path + ": cannot open file");
+    char header[64] = {};
+    const bool has_header = std::fgets(header, sizeof header, f) != nullptr &&
+                            std::string_view(header).starts_with("frame,t,x,y,yaw");
+    std::fclose(f);
+    if (!has_header) fail(frames_path + ":1: expected the header 'frame,t,x,y,yaw'");
+  }
+  if (!replay::load_truth(frames_path, route, error, &times)) fail(error);
+  if (route.empty()) fail(frames_path + ": no frames");
+  for (std::size_t i = 1; i < times.size(); ++i)
+    if (!(times[i] > times[i - 1]))
+      fail(frames_path + ":" + std::to_string(i + 2) + ": time does not increase");
+
+  std::vector<WorldMarking> world;
+  if (!load_world_markings(dir / "markings.csv", world, error)) fail(error);
+
+  EcuCanLog log;
+  if (!read_ecu_can_log(o.can, log, error)) fail(error);
+
+  const replay::TruthJudge judge(route, o.tolerance, kRevisitSeparation_m);
+  const LoopScore loops = score_loops(judge, times, log.loops);
+
+  std::vector<VisibleMarking> visible;
+  std::vector<DetectionRecord> detections;
+  std::string marking_note;
+  bool have_markings = false;
+  if (!o.detections_given && !std::filesystem::exists(o.detections)) {
+    marking_note = o.detections + " not found: marking detection not evaluated";
+  } else {
+    if (!load_detections(o.detections, route.size(), detections, error)) fail(error);
+    if (!load_visible(dir / "visible.csv", route.size(), visible, error)) fail(error);
+    have_markings = true;
+  }
+  const MarkingScore markings = have_markings ? score_markings(visible, detections) : MarkingScore{};
+
+  // --- table ---
+  const double length_m = route_length_m(route);
+  const replay::Evaluation& e = loops.evaluation;
+  std::printf("markloop-eval: %s: %zu frames (%.1f s), route %.2f km, %zu markings in the world\n",
+              o.dir.c_str(), route.size(), times.back() - times.front(), length_m / 1000.0, world.size());
+  std::printf("\nCAN output %s: %llu frames\n", o.can.c_str(), (unsigned long long)log.frames);
+  print_rejects("LoopDetection", log.loop_frames);
+  print_rejects("Status", log.status_frames);
+  if (log.other_frames > 0) std::printf("  %-14s %8llu\n", "other ids", (unsigned long long)log.other_frames);
+  std::printf("  %-14s %8zu complete, %llu incomplete (a page missing or rejected)\n", "detections",
+              log.loops.size(), (unsigned long long)log.detections_incomplete);
+
+  const StatusSummary& s = log.status;
+  if (log.status_frames.accepted > 0) {
+    std::printf("\nECU status (last values)\n");
+    std::printf("  %-34s %s\n", "state", std::string(dbc::to_string(s.last.system_state)).c_str());
+    if (s.page_seen[0])
+      std::printf("  %-34s %u (database %.1f %% full)\n", "frames processed", s.last.frames_processed,
+                  s.last.database_fill_percent);
+    if (s.page_seen[1]) {
+      std::printf("  %-34s %u\n", "frames dropped", s.last.frames_dropped);
+      std::printf("  %-34s %.2f ms\n", "longest loop time (any cycle)", s.loop_time_max_ms);
+    }
+    if (s.page_seen[2])
+      std::printf("  %-34s %u landmarks, %u sequences\n", "database", s.last.landmark_count,
+                  s.last.sequence_count);
+    std::printf("  %-34s camera lost %llu, odometry timeout %llu, bus error %llu, overrun %llu\n",
+                "Status frames with a fault", (unsigned long long)s.camera_lost,
+                (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error,
+                (unsigned long long)s.overrun);
+  }
+
+  std::printf("\nLoop detections (correct when the true positions are within %g m)\n", o.tolerance);
+  std::printf("  %-34s %zu\n", "detections", loops.outcomes.size());
+  std::printf("  %-34s %zu / %zu", "correct / wrong", e.correct, e.wrong);
+  if (e.unjudged > 0) std::printf(" (%zu beyond frames.csv)", e.unjudged);
+  std::printf("\n  %-34s %s\n", "precision", percent_text(e.correct, e.correct + e.wrong).c_str());
+  std::printf("  %-34s %zu of %zu (%s)\n", "revisited 100 m stretches detected",
+              e.revisit_segments_detected, e.revisit_segments,
+              percent_text(e.revisit_segments_detected, e.revisit_segments).c_str());
+  if (e.pose_errors > 0) {
+    std::printf("  %-34s %.3f m, %.2f deg\n", "relative pose error, mean", e.translation_error_mean_m,
+                e.rotation_error_mean_deg);
+    std::printf("  %-34s %.3f m, %.2f deg (%zu detections with a pose)\n", "relative pose error, max",
+                e.translation_error_max_m, e.rotation_error_max_deg, e.pose_errors);
+  } else {
+    std::printf("  %-34s - (no correct detection with a pose)\n", "relative pose error");
+  }
+  print_spread("latency median / p99 / max", loops.latency_s, 1000.0, "ms");
+  print_spread("  of which after the last frame", loops.processing_s, 1000.0, "ms");
+  if (loops.query_time_mismatches > 0)
+    std::printf("  WARNING: %zu detections whose QueryTime is not frames.csv's time of QueryFrame\n",
+                loops.query_time_mismatches);
+
+  if (have_markings) {
+    std::printf("\nMarkings (%s against visible.csv; match: centre inside or IoU >= %.1f)\n",
+                o.detections.c_str(), kMinIntersectionOverUnion);
+    std::printf("  %-34s %zu\n", "visible markings", markings.truth);
+    std::printf("  %-34s %zu\n", "detections", markings.detections);
+    std::printf("  %-34s %s (%zu of %zu)\n", "detection recall (any label)",
+                percent_text(markings.matched, markings.truth).c_str(), markings.matched, markings.truth);
+    std::printf("  %-34s %s (%zu of %zu)\n", "detection precision (any label)",
+                percent_text(markings.matched, markings.detections).c_str(), markings.matched,
+                markings.detections);
+    std::printf("  %-34s %s (%zu of %zu matched)\n", "classification accuracy",
+                percent_text(markings.right_label, markings.matched).c_str(), markings.right_label,
+                markings.matched);
+    std::printf("  %-14s %8s %8s %8s %10s %10s %9s\n", "class", "visible", "found", "recall",
+                "detections", "precision", "accuracy");
+    for (std::size_t c = 0; c < markings.per_class.size(); ++c) {
+      const ClassScore& k = markings.per_class[c];
+      if (k.truth == 0 && k.detections == 0) continue;
+      // Per class: recall = found with the right label / visible; precision =
+      // detections of this label on a marking of this class / detections of
+      // this label; accuracy = right label / found.
+      std::printf("  %-14s %8zu %8zu %8s %10zu %10s %9s\n",
+                  std::string(perception::kMarkingClassNames[c]).c_str(), k.truth, k.truth_found,
+                  percent_text(k.truth_right_label, k.truth).c_str(), k.detections,
+                  percent_text(markings.confusion[c][c], k.detections).c_str(),
+                  percent_text(k.truth_right_label, k.truth_found).c_str());
+    }
+  } else {
+    std::printf("\nMarkings: %s\n", marking_note.c_str());
+  }
+
+  // --- picture ---
+  FigureContent figure;
+  figure.route = &route;
+  figure.markings = &world;
+  figure.loops = &loops.outcomes;
+  char text[256];
+  std::snprintf(text, sizeof text, "markloop: %zu loop detections, %zu wrong (tolerance %g m)",
+                loops.outcomes.size(), e.wrong, o.tolerance);
+  figure.title = text;
+  std::snprintf(text, sizeof text,
+                "precision %s, revisits %zu/%zu, pose error mean %.2f m %.2f deg, latency median %.0f ms, "
+                "route %.2f km",
+                percent_text(e.correct, e.correct + e.wrong).c_str(), e.revisit_segments_detected,
+                e.revisit_segments, e.translation_error_mean_m, e.rotation_error_mean_deg,
+                loops.latency_s.median * 1000.0, length_m / 1000.0);
+  figure.subtitle = text;
+  if (!write_svg(o.svg, figure, error)) fail(error);
+  if (!write_png(o.png, figure, error)) fail(error);
+  std::printf("\npicture: %s, %s\n", o.svg.c_str(), o.png.c_str());
+  if (!o.json.empty()) {
+    write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr);
+    std::printf("figures: %s\n", o.json.c_str());
+  }
+  return 0;
+}

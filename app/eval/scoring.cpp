@@ -1,0 +1,161 @@
+#include "eval/scoring.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+#include <opencv2/imgproc.hpp>
+
+namespace markloop::eval {
+
+namespace {
+
+std::vector<cv::Point2f> hull_of(const Quad& quad) {
+  std::vector<cv::Point2f> points, hull;
+  for (const auto& corner : quad)
+    points.emplace_back(static_cast<float>(corner[0]), static_cast<float>(corner[1]));
+  cv::convexHull(points, hull);
+  return hull;
+}
+
+}  // namespace
+
+Spread spread_of(std::vector<double> values) {
+  Spread s;
+  s.count = values.size();
+  if (values.empty()) return s;
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  s.median = n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+  const auto rank = static_cast<std::size_t>(std::ceil(0.99 * static_cast<double>(n)));
+  s.p99 = values[std::max<std::size_t>(rank, 1) - 1];
+  s.max = values.back();
+  s.min = values.front();
+  return s;
+}
+
+LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>& frame_times,
+                      const std::vector<LoopReport>& loops) {
+  LoopScore score;
+  std::vector<replay::FramePair> pairs;
+  std::vector<std::optional<Pose2>> estimates;
+  std::vector<double> latencies, processing;
+  constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+  for (const LoopReport& report : loops) {
+    const dbc::LoopDetection& m = report.message;
+    const replay::FramePair pair{m.query_frame, m.match_frame};
+    const std::optional<Pose2> estimate =
+        m.pose_valid ? std::optional<Pose2>(Pose2{m.pose_dx_m, m.pose_dy_m, m.pose_dyaw_deg * kDegToRad})
+                     : std::nullopt;
+    pairs.push_back(pair);
+    estimates.push_back(estimate);
+
+    LoopOutcome outcome;
+    outcome.pair = pair;
+    const double stamp_s = static_cast<double>(report.stamp_ns) * 1e-9;
+    outcome.latency_s = stamp_s - m.query_time_s;
+    latencies.push_back(outcome.latency_s);
+    // The latest frame that had arrived when the detection went out.
+    const auto after = std::upper_bound(frame_times.begin(), frame_times.end(), stamp_s + 1e-9);
+    if (after != frame_times.begin()) processing.push_back(stamp_s - *(after - 1));
+    if (judge.covers(pair.query) && judge.covers(pair.match)) {
+      const Pose2& a = judge.truth()[pair.query];
+      const Pose2& b = judge.truth()[pair.match];
+      outcome.true_distance_m = std::hypot(a.x - b.x, a.y - b.y);
+      outcome.verdict = judge.correct(pair) ? Verdict::Correct : Verdict::Wrong;
+      if (outcome.verdict == Verdict::Correct && estimate)
+        outcome.pose_error = judge.pose_error(pair, *estimate);
+    }
+    if (pair.query < frame_times.size() &&
+        std::abs(m.query_time_s - frame_times[pair.query]) > 0.0015)
+      ++score.query_time_mismatches;
+    score.outcomes.push_back(outcome);
+  }
+  score.evaluation = judge.evaluate(pairs, estimates);
+  score.latency_s = spread_of(std::move(latencies));
+  score.processing_s = spread_of(std::move(processing));
+  return score;
+}
+
+double intersection_over_union(const Quad& a, const Quad& b) {
+  const auto ha = hull_of(a), hb = hull_of(b);
+  const double area_a = cv::contourArea(ha), area_b = cv::contourArea(hb);
+  if (!(area_a > 0.0) || !(area_b > 0.0)) return 0.0;
+  std::vector<cv::Point2f> overlap;
+  const double intersection = cv::intersectConvexConvex(ha, hb, overlap, true);
+  if (!(intersection > 0.0)) return 0.0;
+  return intersection / (area_a + area_b - intersection);
+}
+
+bool centre_inside(const Quad& detection, const Quad& truth) {
+  double cx = 0.0, cy = 0.0;
+  for (const auto& corner : detection) {
+    cx += corner[0] / 4.0;
+    cy += corner[1] / 4.0;
+  }
+  std::vector<cv::Point2f> contour;
+  for (const auto& corner : truth)
+    contour.emplace_back(static_cast<float>(corner[0]), static_cast<float>(corner[1]));
+  return cv::pointPolygonTest(contour, cv::Point2f(static_cast<float>(cx), static_cast<float>(cy)),
+                              false) >= 0.0;
+}
+
+MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
+                            const std::vector<DetectionRecord>& detections) {
+  MarkingScore score;
+  score.truth = truth.size();
+  score.detections = detections.size();
+  for (const VisibleMarking& t : truth) ++score.per_class[t.label].truth;
+  for (const DetectionRecord& d : detections) ++score.per_class[d.label].detections;
+
+  struct Candidate {
+    double overlap;  // IoU, plus 1 when the centre is inside: those pair first
+    std::size_t detection, truth;
+  };
+  std::vector<Candidate> candidates;
+  std::vector<bool> truth_taken, detection_taken;
+  std::size_t t_begin = 0, d_begin = 0;
+  while (t_begin < truth.size() || d_begin < detections.size()) {
+    // The next frame present in either list.
+    FrameIndex frame = ~FrameIndex{0};
+    if (t_begin < truth.size()) frame = truth[t_begin].frame;
+    if (d_begin < detections.size()) frame = std::min(frame, detections[d_begin].frame);
+    std::size_t t_end = t_begin, d_end = d_begin;
+    while (t_end < truth.size() && truth[t_end].frame == frame) ++t_end;
+    while (d_end < detections.size() && detections[d_end].frame == frame) ++d_end;
+
+    candidates.clear();
+    for (std::size_t d = d_begin; d < d_end; ++d) {
+      for (std::size_t t = t_begin; t < t_end; ++t) {
+        const double iou = intersection_over_union(detections[d].quad, truth[t].quad);
+        const bool inside = centre_inside(detections[d].quad, truth[t].quad);
+        if (inside || iou >= kMinIntersectionOverUnion)
+          candidates.push_back({iou + (inside ? 1.0 : 0.0), d, t});
+      }
+    }
+    std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+      return std::tie(b.overlap, a.detection, a.truth) < std::tie(a.overlap, b.detection, b.truth);
+    });
+    truth_taken.assign(t_end - t_begin, false);
+    detection_taken.assign(d_end - d_begin, false);
+    for (const Candidate& c : candidates) {
+      if (truth_taken[c.truth - t_begin] || detection_taken[c.detection - d_begin]) continue;
+      truth_taken[c.truth - t_begin] = true;
+      detection_taken[c.detection - d_begin] = true;
+      const Label truth_label = truth[c.truth].label, detected = detections[c.detection].label;
+      ++score.matched;
+      ++score.per_class[truth_label].truth_found;
+      ++score.per_class[detected].detections_matched;
+      ++score.confusion[truth_label][detected];
+      if (truth_label == detected) {
+        ++score.right_label;
+        ++score.per_class[truth_label].truth_right_label;
+      }
+    }
+    t_begin = t_end;
+    d_begin = d_end;
+  }
+  return score;
+}
+
+}  // namespace markloop::eval

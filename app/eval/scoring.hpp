@@ -1,0 +1,86 @@
+// The figures markloop-eval reports: loop detections judged against the
+// truth (TruthJudge, shared with markloop-replay), their latency on the bus,
+// and marking detection/classification against the visible markings.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include "eval/can_log.hpp"
+#include "eval/inputs.hpp"
+#include "perception/marking_classes.hpp"
+#include "replay/truth_judge.hpp"
+
+namespace markloop::eval {
+
+enum class Verdict { Correct, Wrong, Unjudged };
+
+struct LoopOutcome {
+  replay::FramePair pair;
+  Verdict verdict = Verdict::Unjudged;
+  double true_distance_m = 0.0;             // between the two frames' true positions
+  std::optional<replay::PoseError> pose_error;  // correct detections with PoseValid
+  double latency_s = 0.0;                   // CAN stamp - QueryTime
+};
+
+// Order statistics of a sample; all zero when `count` is 0.
+struct Spread {
+  std::size_t count = 0;
+  double median = 0.0;
+  double p99 = 0.0;  // nearest rank
+  double max = 0.0;
+  double min = 0.0;
+};
+Spread spread_of(std::vector<double> values);
+
+struct LoopScore {
+  replay::Evaluation evaluation;
+  std::vector<LoopOutcome> outcomes;  // one per detection, in log order
+  Spread latency_s;     // CAN stamp - QueryTime
+  // CAN stamp - time of the latest frame at or before it: the ECU's processing
+  // time after the frame that released the detection arrived (meaningful
+  // while processing stays under one frame period).
+  Spread processing_s;
+  // QueryTime differs from frames.csv's t of QueryFrame by more than the
+  // signal's 1 ms resolution: the ECU's clock is not the drive's.
+  std::size_t query_time_mismatches = 0;
+};
+
+// `frame_times`: frames.csv's t per frame (same length as the judge's truth).
+LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>& frame_times,
+                      const std::vector<LoopReport>& loops);
+
+inline constexpr double kMinIntersectionOverUnion = 0.3;
+
+struct ClassScore {
+  std::size_t truth = 0;               // visible markings of this class
+  std::size_t truth_found = 0;         // ... matched by a detection of any label
+  std::size_t truth_right_label = 0;   // ... matched by a detection of this label
+  std::size_t detections = 0;          // detections labelled with this class
+  std::size_t detections_matched = 0;  // ... matching a visible marking of any class
+};
+
+struct MarkingScore {
+  std::size_t truth = 0;
+  std::size_t detections = 0;
+  std::size_t matched = 0;      // one-to-one pairs
+  std::size_t right_label = 0;  // pairs whose labels agree
+  std::array<ClassScore, perception::kMarkingClassCount> per_class{};
+  // confusion[truth class][detected label], over matched pairs.
+  std::array<std::array<std::size_t, perception::kMarkingClassCount>, perception::kMarkingClassCount>
+      confusion{};
+};
+
+// A detection and a visible marking of the same frame match when the centre
+// of the detection's quad lies inside the marking's quad, or their
+// intersection over union is at least kMinIntersectionOverUnion. Pairs are
+// made one to one, best overlap first. Both inputs sorted by frame.
+MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
+                            const std::vector<DetectionRecord>& detections);
+
+double intersection_over_union(const Quad& a, const Quad& b);
+bool centre_inside(const Quad& detection, const Quad& truth);
+
+}  // namespace markloop::eval

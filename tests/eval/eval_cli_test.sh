@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# markloop-eval from the outside: help, exit status and FILE:LINE messages on
+# bad input, and the table, picture and JSON of the synthetic run.
+set -euo pipefail
+eval_tool=$1 fixture=$2 work=$3
+rm -rf "$work" && mkdir -p "$work"
+failures=0
+check() {  # check NAME EXPECTED_STATUS PATTERN -- COMMAND...
+  local name=$1 want=$2 pattern=$3; shift 4
+  local status=0
+  "$@" >"$work/out" 2>&1 || status=$?
+  if [ "$status" != "$want" ] || ! grep -qE -- "$pattern" "$work/out"; then
+    echo "FAIL $name: status $status (want $want), output:"; sed 's/^/  /' "$work/out"
+    failures=$((failures + 1))
+  else
+    echo "ok   $name"
+  fi
+}
+fresh() { rm -rf "$work/$1" && "$fixture" "$work/$1" && echo "$work/$1"; }
+
+check "--help" 0 "usage: markloop-eval DIR" -- "$eval_tool" --help
+check "no DIR" 2 "^markloop-eval: DIR is required" -- "$eval_tool"
+check "unknown option" 2 "unknown option --frobnicate" -- "$eval_tool" "$work" --frobnicate
+check "bad tolerance" 2 "--tolerance: not a number" -- "$eval_tool" "$work" --tolerance five
+check "no frames.csv" 2 "$work/frames.csv: cannot open file" -- "$eval_tool" "$work"
+
+run=$(fresh run)
+check "synthetic run" 0 "precision +50.0 %" -- "$eval_tool" "$run" --json "$run/figures.json"
+cp "$work/out" "$work/run.txt"
+for pattern in "correct / wrong +1 / 1" "revisited 100 m stretches detected +1 of 5" \
+    "relative pose error, mean +0.400 m, 1.50 deg" "latency median / p99 / max +1605.0 / 1704.0 / 1704.0 ms" \
+    "LoopDetection +16 accepted, 2 rejected \(CRC 1, alive counter 1" "2 complete, 1 incomplete" \
+    "detection recall \(any label\) +75.0 %" "detection precision \(any label\) +60.0 %" \
+    "classification accuracy +66.7 %" "longest loop time \(any cycle\) +12.50 ms"; do
+  grep -qE -- "$pattern" "$work/run.txt" || { echo "FAIL table lacks '$pattern'"; failures=$((failures + 1)); }
+done
+for f in loops.svg loops.png figures.json; do
+  [ -s "$run/$f" ] || { echo "FAIL $f not written"; failures=$((failures + 1)); }
+done
+grep -q '"correct":1,"wrong":1' "$run/figures.json" || { echo "FAIL json lacks the loop counts"; failures=$((failures + 1)); }
+if command -v python3 >/dev/null; then
+  python3 -c 'import json,sys; json.load(open(sys.argv[1]))' "$run/figures.json" ||
+    { echo "FAIL figures.json is not JSON"; failures=$((failures + 1)); }
+fi
+
+check "tolerance 2 m" 0 "correct / wrong +0 / 2" -- "$eval_tool" "$run" --tolerance 2 --svg "$work/t.svg" --png "$work/t.png"
+
+run=$(fresh nodet) && rm "$run/ecu-detections.csv"
+check "no detections file: note" 0 "ecu-detections.csv not found: marking detection not evaluated" -- "$eval_tool" "$run"
+check "--detections missing" 2 "absent.csv: cannot open file" -- "$eval_tool" "$run" --detections "$run/absent.csv"
+
+run=$(fresh badcan) && printf '(0000000080.000000) vcan0 2A0#00\n(0000000080.100000) vcan0 2A0#XY\n' >>"$run/ecu-can.log"
+check "bad candump line" 2 "^markloop-eval: $run/ecu-can.log:30:" -- "$eval_tool" "$run"
+run=$(fresh badvisible) && printf '12,9,stop,1,2,3,4,5,6,7\n' >>"$run/visible.csv"
+check "short visible line" 2 "^markloop-eval: $run/visible.csv:6: expected 11 comma-separated fields" -- "$eval_tool" "$run"
+run=$(fresh badframes) && sed -i '5s/.*/3,0.3,abc,0,0/' "$run/frames.csv"
+check "bad frames.csv" 2 "^markloop-eval: $run/frames.csv:5: expected frame,t,x,y,yaw numbers" -- "$eval_tool" "$run"
+run=$(fresh baddet) && sed -i '3s/leftturn/left-turn/' "$run/ecu-detections.csv"
+check "unknown label" 2 "^markloop-eval: $run/ecu-detections.csv:3: label 'left-turn' is not a marking class" -- "$eval_tool" "$run"
+run=$(fresh badpng)
+check "unwritable picture" 2 "nowhere/x.png" -- "$eval_tool" "$run" --png "$work/nowhere/x.png"
+
+[ "$failures" = 0 ] || { echo "$failures check(s) failed"; exit 1; }

@@ -1,0 +1,256 @@
+// markloop-eval's figures on the synthetic run of eval_fixture.hpp, and its
+// handling of malformed input.
+#include <catch2/catch_approx.hpp>
+#include <catch2/catch_test_macros.hpp>
+#include <catch2/matchers/catch_matchers_string.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "eval/can_log.hpp"
+#include "eval/figure.hpp"
+#include "eval/inputs.hpp"
+#include "eval/scoring.hpp"
+#include "eval_fixture.hpp"
+#include "perception/marking_classes.hpp"
+#include "replay/paper_format.hpp"
+#include "replay/truth_judge.hpp"
+
+namespace fs = std::filesystem;
+using namespace markloop;
+using namespace markloop::eval;
+using Catch::Approx;
+using Catch::Matchers::StartsWith;
+
+namespace {
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("markloop-eval-test-" + name);
+  fs::remove_all(dir);
+  fixture::write_run(dir);
+  return dir;
+}
+
+Label label_of(std::string_view name) { return *perception::marking_class_from_name(name); }
+
+}  // namespace
+
+TEST_CASE("the ECU's CAN log is reassembled and its bad frames counted") {
+  const fs::path dir = fresh_dir("can");
+  EcuCanLog log;
+  std::string error;
+  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  CHECK(log.frames == 28);
+  CHECK(log.other_frames == 1);
+  CHECK(log.loop_frames.accepted == 16);
+  CHECK(log.loop_frames.bad_crc == 1);
+  CHECK(log.loop_frames.bad_counter == 1);  // the page after the lost one
+  CHECK(log.loop_frames.rejected() == 2);
+  CHECK(log.detections_started == 3);
+  CHECK(log.detections_incomplete == 1);
+  REQUIRE(log.loops.size() == 2);
+  CHECK(log.loops[0].message.query_frame == 553);
+  CHECK(log.loops[0].message.match_frame == 150);
+  CHECK(log.loops[0].message.pose_dy_m == Approx(0.4));
+  CHECK(log.loops[0].stamp_ns == 57'004'005'000);
+  CHECK(log.loops[1].message.match_id == 1);
+  CHECK(log.status_frames.accepted == 9);
+  CHECK(log.status_frames.rejected() == 0);
+  CHECK(log.status.last.frames_processed == 800);
+  CHECK(log.status.loop_time_max_ms == Approx(12.5));
+  CHECK(log.status.overrun == 3);
+  CHECK(log.status.camera_lost == 0);
+  CHECK(log.status.frames_in_state[static_cast<std::size_t>(dbc::SystemState::Running)] == 9);
+}
+
+TEST_CASE("loop detections are judged against the truth") {
+  const fs::path dir = fresh_dir("loops");
+  std::vector<Pose2> route;
+  std::vector<double> times;
+  std::string error;
+  REQUIRE(replay::load_truth(dir / "frames.csv", route, error, &times));
+  REQUIRE(times.size() == fixture::kFrames);
+  EcuCanLog log;
+  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  const replay::TruthJudge judge(route, 5.0, 100.0);
+  const LoopScore score = score_loops(judge, times, log.loops);
+
+  const replay::Evaluation& e = score.evaluation;
+  CHECK(e.correct == 1);
+  CHECK(e.wrong == 1);
+  CHECK(e.unjudged == 0);
+  // Second lap (segments 4..7) plus the end of the first, which comes back
+  // within 5 m of the start.
+  CHECK(e.revisit_segments == 5);
+  CHECK(e.revisit_segments_detected == 1);
+  REQUIRE(e.pose_errors == 1);
+  // True relative pose (3, 0, 0): the car at the query is 3 m ahead of the
+  // car at the match. The reverse convention would give an error of 6 m.
+  CHECK(e.translation_error_mean_m == Approx(0.4).margin(1e-6));
+  CHECK(e.rotation_error_mean_deg == Approx(1.5).margin(1e-6));
+  CHECK(e.translation_error_max_m == Approx(0.4).margin(1e-6));
+
+  REQUIRE(score.outcomes.size() == 2);
+  CHECK(score.outcomes[0].verdict == Verdict::Correct);
+  CHECK(score.outcomes[0].true_distance_m == Approx(3.0));
+  CHECK(score.outcomes[1].verdict == Verdict::Wrong);
+  CHECK(score.outcomes[1].true_distance_m == Approx(std::hypot(50.0, 100.0)));
+  CHECK_FALSE(score.outcomes[1].pose_error.has_value());
+
+  CHECK(score.latency_s.count == 2);
+  CHECK(score.latency_s.median == Approx((fixture::kLatency1_s + fixture::kLatency2_s) / 2).margin(1e-9));
+  CHECK(score.latency_s.p99 == Approx(fixture::kLatency1_s).margin(1e-9));
+  CHECK(score.latency_s.max == Approx(fixture::kLatency1_s).margin(1e-9));
+  CHECK(score.processing_s.median == Approx((0.004005 + 0.006005) / 2).margin(1e-9));
+  CHECK(score.processing_s.max == Approx(0.006005).margin(1e-9));
+  CHECK(score.query_time_mismatches == 0);
+
+  SECTION("a tighter tolerance makes the 3 m detection wrong") {
+    const replay::TruthJudge strict(route, 2.0, 100.0);
+    const LoopScore s = score_loops(strict, times, log.loops);
+    CHECK(s.evaluation.correct == 0);
+    CHECK(s.evaluation.wrong == 2);
+  }
+}
+
+TEST_CASE("order statistics use the nearest rank for p99") {
+  std::vector<double> values;
+  for (int i = 1; i <= 200; ++i) values.push_back(i);
+  const Spread s = spread_of(values);
+  CHECK(s.median == Approx(100.5));
+  CHECK(s.p99 == Approx(198.0));
+  CHECK(s.max == Approx(200.0));
+  CHECK(spread_of({}).count == 0);
+}
+
+TEST_CASE("quad overlap: intersection over union and centre inside") {
+  const Quad unit{{{0, 0}, {100, 0}, {100, 100}, {0, 100}}};
+  const Quad shifted{{{50, 0}, {150, 0}, {150, 100}, {50, 100}}};
+  const Quad far{{{300, 300}, {310, 300}, {310, 310}, {300, 310}}};
+  const Quad reversed{{{0, 100}, {100, 100}, {100, 0}, {0, 0}}};  // other winding
+  CHECK(intersection_over_union(unit, unit) == Approx(1.0));
+  CHECK(intersection_over_union(unit, reversed) == Approx(1.0));
+  CHECK(intersection_over_union(unit, shifted) == Approx(1.0 / 3.0));
+  CHECK(intersection_over_union(unit, far) == 0.0);
+  CHECK(centre_inside(far, far));
+  CHECK_FALSE(centre_inside(far, unit));
+  CHECK(centre_inside(shifted, unit));  // centre on the edge counts
+}
+
+TEST_CASE("marking detections are matched to visible markings one to one") {
+  const fs::path dir = fresh_dir("markings");
+  std::vector<VisibleMarking> visible;
+  std::vector<DetectionRecord> detections;
+  std::string error;
+  REQUIRE(load_visible(dir / "visible.csv", fixture::kFrames, visible, error));
+  REQUIRE(load_detections(dir / "ecu-detections.csv", fixture::kFrames, detections, error));
+  const MarkingScore m = score_markings(visible, detections);
+  CHECK(m.truth == 4);
+  CHECK(m.detections == 5);
+  CHECK(m.matched == 3);
+  CHECK(m.right_label == 2);
+  CHECK(m.per_class[label_of("stop")].truth_right_label == 1);
+  CHECK(m.per_class[label_of("forward")].truth_found == 1);
+  CHECK(m.per_class[label_of("forward")].truth_right_label == 0);
+  CHECK(m.confusion[label_of("forward")][label_of("leftturn")] == 1);
+  CHECK(m.per_class[label_of("crosswalk")].truth_right_label == 1);  // by IoU alone
+  CHECK(m.per_class[label_of("bike")].truth_found == 0);
+  CHECK(m.per_class[label_of("ped")].detections == 2);
+  CHECK(m.per_class[label_of("ped")].detections_matched == 0);
+
+  SECTION("two detections on one marking: only one matches") {
+    detections.push_back(detections.front());
+    std::stable_sort(detections.begin(), detections.end(),
+                     [](const DetectionRecord& a, const DetectionRecord& b) { return a.frame < b.frame; });
+    const MarkingScore twice = score_markings(visible, detections);
+    CHECK(twice.matched == 3);
+    CHECK(twice.detections == 6);
+  }
+}
+
+TEST_CASE("malformed inputs are reported with file and line") {
+  const fs::path dir = fresh_dir("malformed");
+  std::string error;
+  std::vector<VisibleMarking> visible;
+  std::vector<DetectionRecord> detections;
+  std::vector<WorldMarking> world;
+
+  fixture::write_text(dir / "v.csv", "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n1,0,stop,0,0,1,0,1,1,0,1\n"
+                                     "2,1,bogus,0,0,1,0,1,1,0,1\n");
+  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  CHECK(error == (dir / "v.csv").string() + ":3: class 'bogus' is not a marking class");
+
+  fixture::write_text(dir / "v.csv", "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n10,0,stop,0,0,1,0,1,1,0,1\n");
+  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  CHECK(error == (dir / "v.csv").string() + ":2: frame 10 is beyond the truth's 10 frames (frames.csv)");
+
+  fixture::write_text(dir / "v.csv", "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n1,0,stop,0,0,1,0,1,1,0\n");
+  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  CHECK_THAT(error, StartsWith((dir / "v.csv").string() + ":2: expected 11 comma-separated fields"));
+
+  fixture::write_text(dir / "d.csv", "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
+                                     "1,stop,0.5,0,0,1,0,1,1,0,1,2,3\n1,stop,1.5,0,0,1,0,1,1,0,1,2,3\n");
+  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  CHECK(error == (dir / "d.csv").string() + ":3: score 1.5 is outside [0, 1]");
+
+  fixture::write_text(dir / "d.csv", "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
+                                     "1.5,stop,0.5,0,0,1,0,1,1,0,1,2,3\n");
+  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  CHECK_THAT(error, StartsWith((dir / "d.csv").string() + ":2: frame is not a whole number"));
+
+  fixture::write_text(dir / "d.csv", "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
+                                     "1,stop,0.5,0,0,1,0,1,1,0,nan,2,3\n");
+  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  CHECK(error == (dir / "d.csv").string() + ":2: y4 is not a finite number: 'nan'");
+
+  fixture::write_text(dir / "m.csv", "id,class,x,y\n");
+  CHECK_FALSE(load_world_markings(dir / "m.csv", world, error));
+  CHECK(error == (dir / "m.csv").string() + ":1: expected the header 'id,class,x,y,heading'");
+
+  CHECK_FALSE(load_world_markings(dir / "absent.csv", world, error));
+  CHECK(error == (dir / "absent.csv").string() + ": cannot open file");
+
+  fixture::write_text(dir / "c.log", "(0000000001.000000) vcan0 2A0#0011223344556677\n"
+                                     "(0000000001.000100) vcan0 2A0#00112233445566ZZ\n");
+  EcuCanLog log;
+  CHECK_FALSE(read_ecu_can_log(dir / "c.log", log, error));
+  CHECK_THAT(error, StartsWith((dir / "c.log").string() + ":2:"));
+}
+
+TEST_CASE("the picture is written as SVG and PNG") {
+  const fs::path dir = fresh_dir("figure");
+  std::vector<Pose2> route;
+  std::vector<double> times;
+  std::vector<WorldMarking> world;
+  std::string error;
+  REQUIRE(replay::load_truth(dir / "frames.csv", route, error, &times));
+  REQUIRE(load_world_markings(dir / "markings.csv", world, error));
+  EcuCanLog log;
+  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  const replay::TruthJudge judge(route, 5.0, 100.0);
+  const LoopScore score = score_loops(judge, times, log.loops);
+  FigureContent content{&route, &world, &score.outcomes, "title & <figures>", "subtitle"};
+  REQUIRE(write_svg(dir / "loops.svg", content, error));
+  REQUIRE(write_png(dir / "loops.png", content, error));
+  CHECK(fs::file_size(dir / "loops.png") > 1000);
+  std::string svg;
+  {
+    std::FILE* f = std::fopen((dir / "loops.svg").c_str(), "r");
+    REQUIRE(f != nullptr);
+    char buffer[4096];
+    std::size_t n = 0;
+    while ((n = std::fread(buffer, 1, sizeof buffer, f)) > 0) svg.append(buffer, n);
+    std::fclose(f);
+  }
+  CHECK(svg.find("title &amp; &lt;figures&gt;") != std::string::npos);
+  CHECK(svg.find("frame 553 - frame 150") != std::string::npos);
+  CHECK(svg.find("stroke=\"#dc1e1e\"") != std::string::npos);  // the wrong loop, red
+  CHECK(svg.find(">crosswalk<") != std::string::npos);        // legend
+  CHECK(svg.ends_with("</svg>\n"));
+
+  CHECK_FALSE(write_png((dir / "no-such-dir" / "x.png").string(), content, error));
+  CHECK_THAT(error, StartsWith((dir / "no-such-dir" / "x.png").string()));
+}
