@@ -107,6 +107,19 @@ class SequenceDatabase {
   DatabaseStats stats() const;
   const DistanceQuantiser& quantiser() const { return quantiser_; }
 
+  // Live landmark ids are [first_landmark_id(), next_landmark_id()).
+  LandmarkId first_landmark_id() const { return oldest_landmark_id_; }
+  LandmarkId next_landmark_id() const { return next_landmark_id_; }
+  // Calls visit(std::span<const LandmarkId>) for every stored sequence whose
+  // landmarks are all live, oldest first (saving a map).
+  template <typename Visitor>
+  void for_each_sequence(Visitor&& visit) const {
+    for (std::uint64_t n = oldest_sequence_; n < sequences_added_; ++n) {
+      const auto seq = static_cast<std::uint32_t>(n & sequence_mask_);
+      if (sequence_live(seq)) visit(std::span<const LandmarkId>(&sequence_ids_[std::size_t{seq} * k_], k_));
+    }
+  }
+
   // Drops everything (ids keep counting up, so old ids stay invalid).
   void clear();
 

@@ -91,6 +91,8 @@ class SequenceEngine {
   const EngineCounters& counters() const { return counters_; }
   const TrackerCounters& tracker_counters() const { return tracker_.counters(); }
   const SequenceDatabase& database() const { return database_; }
+  // Between frames only: loading a saved map at start-up, clearing on command.
+  SequenceDatabase& mutable_database() { return database_; }
   double odometer() const { return odometer_; }
 
  private:

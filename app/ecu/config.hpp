@@ -1,0 +1,69 @@
+// The ECU's configuration: one key = value file (markloop.conf, documented
+// there) that command-line flags override. Parsed once at start-up; nothing
+// here runs in the real-time loop.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "engine/config.hpp"
+#include "engine/types.hpp"
+
+namespace markloop::ecu {
+
+enum class PixelFormat : std::uint8_t { kGrey, kYuyv };
+
+struct CameraSettings {
+  std::string device = "/dev/video0";  // live capture node
+  std::string file;                    // frame file (.y4m); set: file mode
+  int input = -1;                      // V4L2 input index; -1 keeps the current one
+  PixelFormat format = PixelFormat::kGrey;
+  unsigned width = 1280;               // must match the calibration
+  unsigned height = 512;
+  unsigned fps = 10;
+  unsigned timeout_ms = 500;           // no frame this long: camera lost
+};
+
+struct CanSettings {
+  std::string interface = "can0";  // live SocketCAN interface
+  std::string in_log;              // candump -l log to read; set: file mode
+  std::string out_log;             // candump -l log of everything sent
+};
+
+struct RealtimeSettings {
+  int priority = 0;        // SCHED_FIFO priority 1..99; 0 keeps the default scheduler
+  int cpu = -1;            // CPU to pin the loop to; -1 any
+  bool lock_memory = true; // mlockall(MCL_CURRENT | MCL_FUTURE) after start-up
+};
+
+struct EcuConfig {
+  CameraSettings camera;
+  CanSettings can;
+  std::string calibration;      // camera calibration YAML; empty: the simulator's default
+  std::string map_file;         // place database; empty: none kept
+  bool save_map_on_exit = true;
+  std::string detections_out;   // CSV of every detection (file mode, evaluation)
+  unsigned status_period_ms = 100;
+  unsigned odometry_timeout_ms = 60;  // three cycles of VehicleOdometry
+  bool realtime_replay = false;       // file mode: pace frames to the recorded rate
+  RealtimeSettings realtime;
+  EngineConfig engine;
+
+  bool file_mode() const { return !camera.file.empty(); }
+};
+
+// Sets one key from its text value. Returns an empty string, or what is wrong.
+std::string set_config_value(EcuConfig& config, std::string_view key, std::string_view value);
+
+// Reads a key = value file ('#' starts a comment, blank lines ignored) into
+// `config`. Returns an empty string, or "FILE:LINE: what is wrong".
+std::string load_config_file(const std::string& path, EcuConfig& config);
+
+// Checks the combination (files vs devices, engine limits). Empty when usable.
+std::string validate_config(const EcuConfig& config);
+
+// Every key with its current value, one "key = value" per line (for --print-config).
+std::string format_config(const EcuConfig& config);
+
+}  // namespace markloop::ecu

@@ -1,0 +1,122 @@
+// markloop: the ECU program. See --help and markloop.conf.
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <string_view>
+
+#include "cli/cli.hpp"
+#include "ecu/config.hpp"
+#include "ecu/runner.hpp"
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: markloop [--config FILE] [options]
+
+Recognises places and closes loops from road markings; reports every loop
+detection (LoopDetection) and its health (Status) on CAN (dbc/markloop.dbc).
+
+Live (car, HIL):  markloop --config /etc/markloop/markloop.conf
+                  markloop --camera-device /dev/video0 --can-interface can0
+File mode:        markloop --camera-file DIR/frames.y4m --can-in DIR/odometry.log
+                           --can-out OUT.log [--calibration FILE] [--map FILE]
+                           [--detections-out FILE] [--realtime]
+
+Options (each overrides the same setting of the configuration file):
+  --config FILE          key = value configuration (see markloop.conf); read first
+  --camera-device DEV    V4L2 capture node (camera.device)
+  --camera-file FILE     frames as YUV4MPEG2 (camera.file): file mode
+  --can-interface IF     SocketCAN interface, e.g. can0 or vcan0 (can.interface)
+  --can-in FILE          candump -l log to read odometry/commands from (can.in_log)
+  --can-out FILE         candump -l log of every frame sent (can.out_log); in
+                         file mode stamped with the recording's clock plus the
+                         measured processing time
+  --calibration FILE     camera calibration, OpenCV YAML (calibration); default:
+                         the simulator's camera
+  --map FILE             place database, loaded at start, saved at exit and on
+                         command (map.file)
+  --detections-out FILE  CSV of every detection (detections_out)
+  --realtime             file mode: pace frames to the recorded rate
+  --k N                  sequence length (engine.k)
+  --set KEY=VALUE        any configuration key
+  --summary FILE         write the run's figures as JSON
+  --print-config         print the resulting configuration and exit
+  --quiet                no summary on stderr
+  --help                 this text
+
+Signals: SIGTERM and SIGINT save the map and stop cleanly (exit status 0).
+Exit status: 0 clean end, 1 runtime failure, 2 bad configuration or input.
+)";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using markloop::cli::fail;
+  markloop::cli::program_name() = "markloop";
+  markloop::ecu::RunOptions options;
+  markloop::ecu::EcuConfig& config = options.config;
+
+  // The configuration file first, so that flags override it wherever they stand.
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (arg == "--config") {
+      if (i + 1 >= argc) fail("--config needs a value (see --help)");
+      if (std::string error = markloop::ecu::load_config_file(argv[i + 1], config); !error.empty())
+        fail(error);
+      ++i;
+    }
+  }
+  bool print_config = false;
+  const auto set = [&](const char* key, const char* value) {
+    if (std::string error = markloop::ecu::set_config_value(config, key, value); !error.empty())
+      fail(error);
+  };
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "--realtime") { config.realtime_replay = true; continue; }
+    if (arg == "--print-config") { print_config = true; continue; }
+    if (arg == "--quiet") { options.quiet = true; continue; }
+    if (i + 1 >= argc) fail(std::string(arg) + (arg.starts_with("--") ? " needs a value (see --help)" : ": unexpected argument (see --help)"));
+    const char* value = argv[++i];
+    if (arg == "--config") continue;
+    else if (arg == "--camera-device") set("camera.device", value);
+    else if (arg == "--camera-file") set("camera.file", value);
+    else if (arg == "--can-interface") set("can.interface", value);
+    else if (arg == "--can-in") set("can.in_log", value);
+    else if (arg == "--can-out") set("can.out_log", value);
+    else if (arg == "--calibration") set("calibration", value);
+    else if (arg == "--map") set("map.file", value);
+    else if (arg == "--detections-out") set("detections_out", value);
+    else if (arg == "--k") set("engine.k", value);
+    else if (arg == "--summary") options.summary_json = value;
+    else if (arg == "--set") {
+      const char* equals = std::strchr(value, '=');
+      if (equals == nullptr) fail("--set needs KEY=VALUE, got '" + std::string(value) + "'");
+      if (std::string error = markloop::ecu::set_config_value(
+              config, std::string_view(value, static_cast<std::size_t>(equals - value)), equals + 1);
+          !error.empty())
+        fail("--set: " + error);
+    } else {
+      fail("unknown option " + std::string(arg) + " (see --help)");
+    }
+  }
+  if (std::string error = markloop::ecu::validate_config(config); !error.empty()) fail(error);
+  if (print_config) {
+    std::fputs(markloop::ecu::format_config(config).c_str(), stdout);
+    return 0;
+  }
+
+  if (!config.calibration.empty()) {
+    std::string error;
+    auto camera = markloop::perception::load_camera_model(config.calibration, error);
+    if (!camera) fail(error);
+    options.camera = *camera;
+    if (!markloop::perception::load_detector_config(config.calibration, options.detector, error))
+      fail(error);
+  }
+  return config.file_mode() ? markloop::ecu::run_file_mode(options)
+                            : markloop::ecu::run_live_mode(options);
+}

@@ -1,0 +1,328 @@
+#include "ecu/map_store.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <ctime>
+#include <span>
+
+#include "ecu/crc32.hpp"
+#include "platform/os.hpp"
+
+namespace markloop::ecu {
+
+namespace {
+
+constexpr std::array<std::uint8_t, 8> kMagic{'M', 'L', 'O', 'O', 'P', 'M', 'A', 'P'};
+
+void put16(std::uint8_t* p, std::uint16_t v) {
+  p[0] = static_cast<std::uint8_t>(v);
+  p[1] = static_cast<std::uint8_t>(v >> 8);
+}
+void put32(std::uint8_t* p, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+void put64(std::uint8_t* p, std::uint64_t v) {
+  for (int i = 0; i < 8; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+void putf(std::uint8_t* p, float v) { put32(p, std::bit_cast<std::uint32_t>(v)); }
+void putd(std::uint8_t* p, double v) { put64(p, std::bit_cast<std::uint64_t>(v)); }
+std::uint16_t get16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
+std::uint32_t get32(const std::uint8_t* p) {
+  std::uint32_t v = 0;
+  for (int i = 3; i >= 0; --i) v = (v << 8) | p[i];
+  return v;
+}
+std::uint64_t get64(const std::uint8_t* p) {
+  std::uint64_t v = 0;
+  for (int i = 7; i >= 0; --i) v = (v << 8) | p[i];
+  return v;
+}
+float getf(const std::uint8_t* p) { return std::bit_cast<float>(get32(p)); }
+double getd(const std::uint8_t* p) { return std::bit_cast<double>(get64(p)); }
+
+void encode_landmark(const Landmark& l, std::uint8_t* p) {
+  put16(p + 0, l.label);
+  put16(p + 2, l.observations);
+  put32(p + 4, l.first_frame);
+  put32(p + 8, l.last_frame);
+  putf(p + 12, l.x);
+  putf(p + 16, l.y);
+  putf(p + 20, l.car_x);
+  putf(p + 24, l.car_y);
+  putf(p + 28, l.car_yaw);
+  p[32] = l.has_car_pose ? 1 : 0;
+  p[33] = p[34] = p[35] = 0;
+  putd(p + 36, l.t);
+  putd(p + 44, l.station);
+}
+
+// False when a value is not one markloop could have written.
+bool decode_landmark(const std::uint8_t* p, Landmark& l) {
+  l.label = get16(p + 0);
+  l.observations = get16(p + 2);
+  l.first_frame = get32(p + 4);
+  l.last_frame = get32(p + 8);
+  l.x = getf(p + 12);
+  l.y = getf(p + 16);
+  l.car_x = getf(p + 20);
+  l.car_y = getf(p + 24);
+  l.car_yaw = getf(p + 28);
+  if (p[32] > 1 || p[33] != 0 || p[34] != 0 || p[35] != 0) return false;
+  l.has_car_pose = p[32] == 1;
+  l.t = getd(p + 36);
+  l.station = getd(p + 44);
+  const float coordinates[] = {l.x, l.y, l.car_x, l.car_y, l.car_yaw};
+  for (const float v : coordinates)
+    if (!std::isfinite(v) || std::abs(v) > 1.0e7f) return false;
+  return std::isfinite(l.t) && std::isfinite(l.station) && std::abs(l.t) < 1.0e10 &&
+         std::abs(l.station) < 1.0e10 && l.first_frame <= l.last_frame;
+}
+
+// Fills `buffer` with the payload and hands every full chunk to `flush`.
+template <typename Flush>
+bool serialise_payload(const SequenceDatabase& database, std::span<std::uint8_t> buffer,
+                       std::uint64_t& sequences, Flush&& flush) {
+  std::size_t used = 0;
+  bool ok = true;
+  const auto reserve = [&](std::size_t bytes) -> std::uint8_t* {
+    if (used + bytes > buffer.size()) {
+      ok = ok && flush(std::span<const std::uint8_t>(buffer.data(), used));
+      used = 0;
+    }
+    std::uint8_t* p = buffer.data() + used;
+    used += bytes;
+    return p;
+  };
+  const LandmarkId first = database.first_landmark_id();
+  for (LandmarkId id = first; id != database.next_landmark_id(); ++id)
+    encode_landmark(*database.landmark(id), reserve(kMapLandmarkBytes));
+  sequences = 0;
+  const unsigned k = database.k();
+  database.for_each_sequence([&](std::span<const LandmarkId> ids) {
+    std::uint8_t* p = reserve(4 * k);
+    for (unsigned i = 0; i < k; ++i) put32(p + 4 * i, ids[i] - first);
+    ++sequences;
+  });
+  if (used > 0) ok = ok && flush(std::span<const std::uint8_t>(buffer.data(), used));
+  return ok;
+}
+
+std::string describe(std::error_code ec) { return ec.message(); }
+
+}  // namespace
+
+MapStore::MapStore(std::string path) : path_(std::move(path)) {
+  if (!path_.empty()) temporary_path_ = path_ + ".tmp";
+}
+
+std::error_code MapStore::save(const SequenceDatabase& database) noexcept {
+  if (path_.empty()) return {};
+  const std::error_code ec = write_file(database);
+  if (ec) {
+    ++save_failures_;
+    (void)platform::sys_unlink(temporary_path_.c_str());
+  } else {
+    ++saves_;
+  }
+  return ec;
+}
+
+std::error_code MapStore::write_file(const SequenceDatabase& database) noexcept {
+  // Pass 1: size and checksum of the payload, without touching the disk.
+  Crc32 crc;
+  std::uint64_t payload_bytes = 0;
+  std::uint64_t sequences = 0;
+  serialise_payload(database, buffer_, sequences, [&](std::span<const std::uint8_t> chunk) {
+    crc.add(chunk);
+    payload_bytes += chunk.size();
+    return true;
+  });
+
+  std::array<std::uint8_t, kMapHeaderBytes> header{};
+  std::copy(kMagic.begin(), kMagic.end(), header.begin());
+  put32(&header[8], kMapVersion);
+  put32(&header[12], kMapHeaderBytes);
+  put32(&header[16], database.k());
+  put32(&header[20], kMapLandmarkBytes);
+  put64(&header[24], database.next_landmark_id() - database.first_landmark_id());
+  put64(&header[32], sequences);
+  put64(&header[40], payload_bytes);
+  put32(&header[48], crc.value());
+  put32(&header[60], crc32(std::span<const std::uint8_t>(header.data(), 60)));
+
+  int fd = -1;
+  if (auto ec = platform::sys_open_mode(temporary_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                        0644, fd))
+    return ec;
+  platform::UniqueFd file(fd);
+  if (auto ec = platform::write_all(fd, header.data(), header.size())) return ec;
+  // Pass 2: the same bytes again, to the file.
+  std::error_code write_error;
+  std::uint64_t sequences_again = 0;
+  serialise_payload(database, buffer_, sequences_again, [&](std::span<const std::uint8_t> chunk) {
+    if (!write_error) write_error = platform::write_all(fd, chunk.data(), chunk.size());
+    return !write_error;
+  });
+  if (write_error) return write_error;
+  if (auto ec = platform::sys_fsync(fd)) return ec;
+  file.reset();
+  if (auto ec = platform::sys_rename(temporary_path_.c_str(), path_.c_str())) return ec;
+  return platform::sync_parent_directory(path_.c_str());
+}
+
+MapLoadResult MapStore::reject(const std::string& what) {
+  MapLoadResult result;
+  result.outcome = MapLoadOutcome::kRejected;
+  result.message = path_ + ": " + what;
+  const std::string aside = path_ + ".corrupt-" + std::to_string(std::time(nullptr));
+  if (auto ec = platform::sys_rename(path_.c_str(), aside.c_str())) {
+    result.message += "; could not set it aside: " + describe(ec);
+  } else {
+    result.set_aside_path = aside;
+    result.message += "; set aside as " + aside;
+  }
+  return result;
+}
+
+MapLoadResult MapStore::load(SequenceDatabase& database, const MatchConfig& match) {
+  MapLoadResult result;
+  if (path_.empty()) {
+    result.message = "no map file configured";
+    return result;
+  }
+  int fd = -1;
+  if (auto ec = platform::sys_open_mode(path_.c_str(), O_RDONLY, 0, fd)) {
+    if (ec.value() == ENOENT) {
+      result.message = path_ + ": no map yet, starting empty";
+      return result;
+    }
+    result.outcome = MapLoadOutcome::kRejected;
+    result.message = path_ + ": cannot open: " + describe(ec);
+    return result;  // unreadable is not corrupt: leave it where it is
+  }
+  platform::UniqueFd file(fd);
+  struct stat info {};
+  if (::fstat(fd, &info) != 0) return reject("cannot stat: " + describe(platform::last_error()));
+  const auto file_bytes = static_cast<std::uint64_t>(info.st_size);
+
+  std::array<std::uint8_t, kMapHeaderBytes> header{};
+  std::size_t got = 0;
+  if (auto ec = platform::read_full(fd, header.data(), header.size(), got))
+    return reject("read error: " + describe(ec));
+  if (got < 8 || !std::equal(kMagic.begin(), kMagic.end(), header.begin()))
+    return reject("not a markloop map (wrong magic)");
+  if (got < kMapHeaderBytes) return reject("truncated header (" + std::to_string(got) + " bytes)");
+  if (get32(&header[60]) != crc32(std::span<const std::uint8_t>(header.data(), 60)))
+    return reject("header checksum mismatch");
+  const std::uint32_t version = get32(&header[8]);
+  if (version != kMapVersion)
+    return reject("map version " + std::to_string(version) + ", this markloop reads version " +
+                  std::to_string(kMapVersion));
+  const std::uint32_t k = get32(&header[16]);
+  if (get32(&header[12]) != kMapHeaderBytes || get32(&header[20]) != kMapLandmarkBytes)
+    return reject("unexpected header or record size");
+  if (k != database.k())
+    return reject("map made with k = " + std::to_string(k) + ", this ECU uses k = " +
+                  std::to_string(database.k()));
+  const std::uint64_t landmark_count = get64(&header[24]);
+  const std::uint64_t sequence_count = get64(&header[32]);
+  const std::uint64_t payload_bytes = get64(&header[40]);
+  if (landmark_count > (std::uint64_t{1} << 32) || sequence_count > (std::uint64_t{1} << 32) ||
+      payload_bytes != landmark_count * kMapLandmarkBytes + sequence_count * 4 * k)
+    return reject("inconsistent counts in header");
+  if (file_bytes != kMapHeaderBytes + payload_bytes)
+    return reject("size " + std::to_string(file_bytes) + " bytes, header says " +
+                  std::to_string(kMapHeaderBytes + payload_bytes) +
+                  (file_bytes < kMapHeaderBytes + payload_bytes ? " (truncated)" : ""));
+
+  // Pass 1: checksum and every value, before anything enters the database.
+  const std::size_t landmark_chunk = buffer_.size() / kMapLandmarkBytes * kMapLandmarkBytes;
+  const std::size_t sequence_bytes = 4 * std::size_t{k};
+  const std::size_t sequence_chunk = buffer_.size() / sequence_bytes * sequence_bytes;
+  Crc32 crc;
+  double max_station = -1.0e300, max_t = -1.0e300;
+  Landmark landmark;
+  for (std::uint64_t done = 0; done < landmark_count;) {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(landmark_count - done, landmark_chunk / kMapLandmarkBytes));
+    if (auto ec = platform::read_full(fd, buffer_.data(), n * kMapLandmarkBytes, got))
+      return reject("read error: " + describe(ec));
+    if (got != n * kMapLandmarkBytes) return reject("file shrank while reading");
+    crc.add(std::span<const std::uint8_t>(buffer_.data(), got));
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!decode_landmark(&buffer_[i * kMapLandmarkBytes], landmark))
+        return reject("landmark " + std::to_string(done + i) + " holds impossible values");
+      max_station = std::max(max_station, landmark.station);
+      max_t = std::max(max_t, landmark.t);
+    }
+    done += n;
+  }
+  for (std::uint64_t done = 0; done < sequence_count;) {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(sequence_count - done, sequence_chunk / sequence_bytes));
+    if (auto ec = platform::read_full(fd, buffer_.data(), n * sequence_bytes, got))
+      return reject("read error: " + describe(ec));
+    if (got != n * sequence_bytes) return reject("file shrank while reading");
+    crc.add(std::span<const std::uint8_t>(buffer_.data(), got));
+    for (std::size_t i = 0; i < n * k; ++i)
+      if (get32(&buffer_[4 * i]) >= landmark_count)
+        return reject("sequence " + std::to_string(done + i / k) + " refers to a missing landmark");
+    done += n;
+  }
+  if (crc.value() != get32(&header[48])) return reject("payload checksum mismatch");
+
+  // Pass 2: the file is sound; fill the database. The old drive ends before
+  // the new one starts by more than the match separation in time and distance.
+  const double station_shift = landmark_count > 0 ? max_station + match.min_separation_m + 1.0 : 0.0;
+  const double time_shift = landmark_count > 0 ? max_t + match.min_separation_s + 1.0 : 0.0;
+  if (::lseek(fd, static_cast<off_t>(kMapHeaderBytes), SEEK_SET) < 0)
+    return reject("cannot seek: " + describe(platform::last_error()));
+  database.clear();
+  const LandmarkId base = database.next_landmark_id();
+  for (std::uint64_t done = 0; done < landmark_count;) {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(landmark_count - done, landmark_chunk / kMapLandmarkBytes));
+    if (platform::read_full(fd, buffer_.data(), n * kMapLandmarkBytes, got) || got != n * kMapLandmarkBytes) {
+      database.clear();
+      return reject("file changed while loading");
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      decode_landmark(&buffer_[i * kMapLandmarkBytes], landmark);
+      landmark.station -= station_shift;
+      landmark.t -= time_shift;
+      database.add_landmark(landmark);
+    }
+    done += n;
+  }
+  std::array<LandmarkId, kMaxSequenceLength> ids{};
+  std::size_t sequences_loaded = 0;
+  for (std::uint64_t done = 0; done < sequence_count;) {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(sequence_count - done, sequence_chunk / sequence_bytes));
+    if (platform::read_full(fd, buffer_.data(), n * sequence_bytes, got) || got != n * sequence_bytes) {
+      database.clear();
+      return reject("file changed while loading");
+    }
+    for (std::size_t s = 0; s < n; ++s) {
+      for (unsigned i = 0; i < k; ++i)
+        ids[i] = base + get32(&buffer_[s * sequence_bytes + 4 * i]);
+      // False when the database is smaller than the map and evicted a landmark.
+      if (database.add_sequence(std::span<const LandmarkId>(ids.data(), k))) ++sequences_loaded;
+    }
+    done += n;
+  }
+  result.outcome = MapLoadOutcome::kLoaded;
+  result.landmarks = database.stats().landmarks;
+  result.sequences = sequences_loaded;
+  result.message = path_ + ": loaded " + std::to_string(result.landmarks) + " landmarks and " +
+                   std::to_string(result.sequences) + " sequences";
+  return result;
+}
+
+}  // namespace markloop::ecu

@@ -1,0 +1,78 @@
+// The place database on disk, so that places are recognised across drives.
+//
+// File layout (version 1, all integers and floats little-endian):
+//   header, 64 bytes:
+//     0  magic "MLOOPMAP"           8  u32 version (1)     12 u32 header bytes (64)
+//     16 u32 k                      20 u32 landmark record bytes (52)
+//     24 u64 landmark count         32 u64 sequence count
+//     40 u64 payload bytes          48 u32 payload CRC-32  52..59 zero
+//     60 u32 CRC-32 of bytes 0..59
+//   payload: the landmarks oldest first (52 bytes each: label u16,
+//     observations u16, first_frame u32, last_frame u32, x, y, car_x, car_y,
+//     car_yaw f32, has_car_pose u8 + 3 zero bytes, t f64, station f64), then
+//     the sequences oldest first (k u32 each: landmark index into the above).
+//
+// Saving writes PATH.tmp, fsyncs it, renames it over PATH and fsyncs the
+// directory: a power cut at any point leaves the previous map or the new one,
+// never a mixture. Loading checks everything (size, magic, version, k,
+// checksums, every value and index) before trusting the file; a file that
+// fails is renamed aside to PATH.corrupt-<unix time> and the ECU starts with
+// an empty map.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <system_error>
+
+#include "engine/config.hpp"
+#include "engine/sequence_database.hpp"
+
+namespace markloop::ecu {
+
+inline constexpr std::uint32_t kMapVersion = 1;
+inline constexpr std::size_t kMapHeaderBytes = 64;
+inline constexpr std::size_t kMapLandmarkBytes = 52;
+
+enum class MapLoadOutcome : std::uint8_t { kLoaded, kMissing, kRejected };
+
+struct MapLoadResult {
+  MapLoadOutcome outcome = MapLoadOutcome::kMissing;
+  std::string message;          // what was loaded, or what is wrong with the file
+  std::string set_aside_path;   // where a rejected file went (empty if not moved)
+  std::size_t landmarks = 0;
+  std::size_t sequences = 0;
+};
+
+class MapStore {
+ public:
+  // `path` empty: no map is kept (load finds nothing, save does nothing).
+  explicit MapStore(std::string path);
+
+  const std::string& path() const { return path_; }
+
+  // Start-up only (allocates for messages). Fills the empty `database` from
+  // the file. Loaded landmarks are moved back in time and distance by more
+  // than the match separation, so that they count as an earlier visit.
+  MapLoadResult load(SequenceDatabase& database, const MatchConfig& match);
+
+  // Writes the database (no heap: a fixed buffer). Blocking file I/O: call
+  // between frames (on command and at shutdown).
+  std::error_code save(const SequenceDatabase& database) noexcept;
+
+  std::uint64_t saves() const { return saves_; }
+  std::uint64_t save_failures() const { return save_failures_; }
+
+ private:
+  std::error_code write_file(const SequenceDatabase& database) noexcept;
+  MapLoadResult reject(const std::string& what);
+
+  std::string path_;
+  std::string temporary_path_;
+  std::array<std::uint8_t, 1 << 16> buffer_{};
+  std::uint64_t saves_ = 0;
+  std::uint64_t save_failures_ = 0;
+};
+
+}  // namespace markloop::ecu

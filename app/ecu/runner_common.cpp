@@ -1,0 +1,134 @@
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+
+#include "ecu/runner.hpp"
+#include "platform/os.hpp"
+
+namespace markloop::ecu::detail {
+
+platform::UniqueFd open_stop_signals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  platform::UniqueFd fd;
+  if (auto ec = platform::open_signalfd(signals, fd)) {
+    std::fprintf(stderr, "markloop: cannot open signalfd: %s\n", ec.message().c_str());
+    std::exit(2);
+  }
+  return fd;
+}
+
+int pending_stop_signal(int signal_fd) {
+  int number = 0;
+  (void)platform::read_signal(signal_fd, number);
+  return number;
+}
+
+void start_up(Ecu& ecu, const EcuConfig& config, bool quiet) {
+  const MapLoadResult map = ecu.load_map();
+  if (map.outcome == MapLoadOutcome::kRejected)
+    std::fprintf(stderr, "markloop: map rejected: %s; starting with an empty map\n", map.message.c_str());
+  else if (!quiet && !config.map_file.empty())
+    std::fprintf(stderr, "markloop: %s\n", map.message.c_str());
+
+  // Everything is allocated now: keep it in RAM, then take the CPU.
+  if (config.realtime.lock_memory) {
+    if (auto ec = platform::lock_all_memory())
+      std::fprintf(stderr, "markloop: mlockall not permitted (%s): running unlocked\n",
+                   ec.message().c_str());
+  }
+  if (config.realtime.cpu >= 0) {
+    if (auto ec = platform::pin_to_cpu(config.realtime.cpu))
+      std::fprintf(stderr, "markloop: cannot pin to CPU %d (%s)\n", config.realtime.cpu,
+                   ec.message().c_str());
+  }
+  if (config.realtime.priority > 0) {
+    if (auto ec = platform::set_fifo_priority(config.realtime.priority))
+      std::fprintf(stderr, "markloop: SCHED_FIFO %d not permitted (%s): normal scheduling\n",
+                   config.realtime.priority, ec.message().c_str());
+  }
+}
+
+void shut_down(Ecu& ecu, const EcuConfig& config, bool quiet) {
+  if (config.map_file.empty() || !config.save_map_on_exit) return;
+  if (auto ec = ecu.save_map())
+    std::fprintf(stderr, "markloop: saving the map to %s failed: %s\n", config.map_file.c_str(),
+                 ec.message().c_str());
+  else if (!quiet)
+    std::fprintf(stderr, "markloop: map saved to %s (%zu landmarks, %zu sequences)\n",
+                 config.map_file.c_str(), ecu.engine().database().stats().landmarks,
+                 ecu.engine().database().stats().sequences);
+}
+
+namespace {
+double ms(std::int64_t ns) { return double(ns) / 1e6; }
+}  // namespace
+
+void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode) {
+  const EcuCounters& c = ecu.counters();
+  const auto& detect = ecu.detect_time();
+  const auto& engine = ecu.engine_time();
+  const auto& frame = ecu.frame_time();
+  const auto& latency = ecu.detection_latency();
+  const DatabaseStats db = ecu.engine().database().stats();
+  const OdometryCounters& odo = ecu.odometry().counters();
+  std::size_t rss = 0;
+  (void)platform::resident_bytes(rss);
+  if (!options.quiet) {
+    std::fprintf(stderr,
+                 "markloop: %s mode, %.1f s: %llu frames processed, %llu dropped, %llu overruns, "
+                 "%llu detections, %llu loop detections sent\n",
+                 mode, wall_seconds, (unsigned long long)c.frames_processed,
+                 (unsigned long long)c.frames_dropped, (unsigned long long)c.overruns,
+                 (unsigned long long)c.detections, (unsigned long long)c.loop_detections);
+    std::fprintf(stderr,
+                 "markloop: per frame (ms, 10 us bins) detect median %.2f p99 %.2f | engine median "
+                 "%.3f p99 %.3f | total median %.2f p99 %.2f max %.2f\n",
+                 ms(detect.quantile_ns(0.5)), ms(detect.quantile_ns(0.99)),
+                 ms(engine.quantile_ns(0.5)), ms(engine.quantile_ns(0.99)),
+                 ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)), ms(frame.max_ns()));
+    std::fprintf(stderr,
+                 "markloop: odometry %llu accepted, %llu bad CRC, %llu bad counter, %llu timeouts; "
+                 "%llu foreign frames; database %zu landmarks, %zu sequences; RSS %.1f MiB\n",
+                 (unsigned long long)odo.accepted, (unsigned long long)odo.bad_crc,
+                 (unsigned long long)odo.bad_counter, (unsigned long long)odo.timeouts,
+                 (unsigned long long)c.foreign_frames, db.landmarks, db.sequences,
+                 double(rss) / (1024.0 * 1024.0));
+  }
+  if (options.summary_json.empty()) return;
+  std::FILE* out = std::fopen(options.summary_json.c_str(), "w");
+  if (out == nullptr) {
+    std::fprintf(stderr, "markloop: cannot write %s: %s\n", options.summary_json.c_str(),
+                 std::strerror(errno));
+    return;
+  }
+  std::fprintf(out,
+               "{\"mode\": \"%s\", \"wall_s\": %.3f, \"frames_processed\": %llu, \"frames_dropped\": %llu,"
+               " \"overruns\": %llu, \"detections\": %llu, \"loop_detections\": %llu,"
+               " \"frames_without_pose\": %llu, \"pose_losses\": %llu, \"foreign_frames\": %llu,"
+               " \"send_errors\": %llu, \"odometry_accepted\": %llu, \"odometry_bad_crc\": %llu,"
+               " \"odometry_bad_counter\": %llu, \"odometry_timeouts\": %llu,"
+               " \"detect_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
+               " \"engine_ms\": {\"median\": %.4f, \"p99\": %.4f, \"max\": %.4f},"
+               " \"frame_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
+               " \"latency_ms\": {\"count\": %llu, \"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
+               " \"landmarks\": %zu, \"sequences\": %zu, \"rss_bytes\": %zu}\n",
+               mode, wall_seconds, (unsigned long long)c.frames_processed,
+               (unsigned long long)c.frames_dropped, (unsigned long long)c.overruns,
+               (unsigned long long)c.detections, (unsigned long long)c.loop_detections,
+               (unsigned long long)c.frames_without_pose, (unsigned long long)c.pose_losses,
+               (unsigned long long)c.foreign_frames, (unsigned long long)c.send_errors,
+               (unsigned long long)odo.accepted, (unsigned long long)odo.bad_crc,
+               (unsigned long long)odo.bad_counter, (unsigned long long)odo.timeouts,
+               ms(detect.quantile_ns(0.5)), ms(detect.quantile_ns(0.99)), ms(detect.max_ns()),
+               ms(engine.quantile_ns(0.5)), ms(engine.quantile_ns(0.99)), ms(engine.max_ns()),
+               ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)), ms(frame.max_ns()),
+               (unsigned long long)latency.count(), ms(latency.quantile_ns(0.5)),
+               ms(latency.quantile_ns(0.99)), ms(latency.max_ns()), db.landmarks, db.sequences, rss);
+  std::fclose(out);
+}
+
+}  // namespace markloop::ecu::detail
