@@ -42,7 +42,7 @@ bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& erro
       return false;
     }
     ++out.frames;
-    if ((out.frames & 0xFFFF) == 0) progress.update(reader.line_number());
+    if ((out.frames & 0xFFF) == 0) progress.update(reader.line_number());
     const can::CanFrame& frame = record.frame;
     if (frame.extended || (frame.id != dbc::LoopDetection::kId && frame.id != dbc::Status::kId)) {
       ++out.other_frames;

@@ -65,7 +65,7 @@ class CsvFile {
     std::size_t line = 1;
     while (std::getline(in, text)) {
       ++line;
-      if ((line & 0xFFFF) == 0) progress.update(line);
+      if ((line & 0xFFF) == 0) progress.update(line);
       if (trim(text).empty()) continue;
       const auto fields = split_fields(trim(text));
       std::string problem;
