@@ -39,7 +39,7 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
   LoopScore score;
   std::vector<replay::FramePair> pairs;
   std::vector<std::optional<Pose2>> estimates;
-  std::vector<double> latencies, processing;
+  std::vector<double> latencies, processing, since_query_frame;
   constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
   for (const LoopReport& report : loops) {
     const dbc::LoopDetection& m = report.message;
@@ -66,14 +66,16 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
       if (outcome.verdict == Verdict::Correct && estimate)
         outcome.pose_error = judge.pose_error(pair, *estimate);
     }
-    if (pair.query < frame_times.size() &&
-        std::abs(m.query_time_s - frame_times[pair.query]) > 0.0015)
-      ++score.query_time_mismatches;
+    if (pair.query < frame_times.size()) {
+      since_query_frame.push_back(stamp_s - frame_times[pair.query]);
+      if (std::abs(m.query_time_s - frame_times[pair.query]) > 0.0015) ++score.query_time_mismatches;
+    }
     score.outcomes.push_back(outcome);
   }
   score.evaluation = judge.evaluate(pairs, estimates);
   score.latency_s = spread_of(std::move(latencies));
   score.processing_s = spread_of(std::move(processing));
+  score.since_query_frame_s = spread_of(std::move(since_query_frame));
   return score;
 }
 

@@ -39,12 +39,15 @@ struct LoopScore {
   replay::Evaluation evaluation;
   std::vector<LoopOutcome> outcomes;  // one per detection, in log order
   Spread latency_s;     // CAN stamp - QueryTime
+  // CAN stamp - frames.csv's time of QueryFrame: from the image of the query
+  // place to the bus, including the engine's wait for the markings ahead.
+  Spread since_query_frame_s;
   // CAN stamp - time of the latest frame at or before it: the ECU's processing
   // time after the frame that released the detection arrived (meaningful
   // while processing stays under one frame period).
   Spread processing_s;
   // QueryTime differs from frames.csv's t of QueryFrame by more than the
-  // signal's 1 ms resolution: the ECU's clock is not the drive's.
+  // signal's 1 ms resolution (the DBC defines QueryTime as that frame's time).
   std::size_t query_time_mismatches = 0;
 };
 
