@@ -63,7 +63,8 @@ EXPECTED = {  # id: (name, dlc, cycle ms or None)
 
 
 def main():
-    dbc_path, vectors_program = sys.argv[1], sys.argv[2]
+    # The vectors program may come with an emulator in front (cross builds).
+    dbc_path, vectors_program = sys.argv[1], sys.argv[2:]
     failures = []
 
     _quiet.propagate = True
@@ -107,7 +108,7 @@ def main():
         if not loop.is_multiplexed:
             failures.append("LoopDetection: expected a multiplexed message")
 
-    output = subprocess.run([vectors_program], check=True, capture_output=True, text=True).stdout
+    output = subprocess.run(vectors_program, check=True, capture_output=True, text=True).stdout
     lines = [l for l in output.splitlines() if l.strip()]
     if len(lines) < 10:
         failures.append(f"only {len(lines)} vectors printed")

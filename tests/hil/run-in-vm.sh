@@ -34,6 +34,17 @@
 #   --timeout SEC    wall-clock limit for the VM (default 600)
 #   --require FILE   fail unless FILE exists (e.g. a test binary); repeatable
 #   --with-vivid     also load vivid (virtual V4L2 camera) in the VM
+#   --arch A         x86_64 | aarch64 (env MARKLOOP_HIL_ARCH; default: this
+#                    machine's). aarch64 boots Debian's arm64 kernel in
+#                    qemu-system-aarch64 -M virt -cpu cortex-a72 (always tcg)
+#                    with busybox-static:arm64 in the initramfs. The host root
+#                    holds no arm64 shell, so the guest does not chroot: it
+#                    runs the commands with busybox sh in the initramfs, with
+#                    the host's directories (/usr, /lib, /etc, /work, ...)
+#                    linked in read-only, so aarch64 binaries find their
+#                    loader and libraries in Debian's multiarch directories
+#                    (the :arm64 packages). Host (x86) programs cannot run
+#                    there: commands use busybox applets and aarch64 binaries.
 #   --prepare-only   download/cache the kernel and exit
 set -euo pipefail
 
@@ -50,6 +61,7 @@ accel=${MARKLOOP_HIL_ACCEL:-auto}
 timeout_s=600
 with_vivid=0
 prepare_only=0
+arch=${MARKLOOP_HIL_ARCH:-$(uname -m)}
 requires=()
 commands=()
 
@@ -62,6 +74,7 @@ while [ $# -gt 0 ]; do
     --timeout) timeout_s=$2; shift 2 ;;
     --require) requires+=("$2"); shift 2 ;;
     --with-vivid) with_vivid=1; shift ;;
+    --arch) arch=$2; shift 2 ;;
     --prepare-only) prepare_only=1; shift ;;
     --) shift; commands+=("$@"); break ;;
     -*) die "unknown option $1" ;;
@@ -75,6 +88,14 @@ for f in "${requires[@]}"; do
 done
 case "$mode" in auto|native|vm) ;; *) die "bad --mode $mode" ;; esac
 case "$accel" in auto|tcg|kvm) ;; *) die "bad --accel $accel" ;; esac
+case "$arch" in
+  x86_64) deb_arch=amd64 qemu_system=qemu-system-x86_64 qemu_package=qemu-system-x86 ;;
+  aarch64) deb_arch=arm64 qemu_system=qemu-system-aarch64 qemu_package=qemu-system-arm ;;
+  *) die "bad --arch $arch (x86_64 or aarch64)" ;;
+esac
+# A guest of another architecture cannot run the host's programs: no chroot.
+foreign=0
+[ "$arch" = "$(uname -m)" ] || foreign=1
 
 if [ -z "$results" ]; then
   results=$(mktemp -d "${TMPDIR:-/tmp}/markloop-hil.XXXXXX")
@@ -143,7 +164,7 @@ run_native() {
   summarize
 }
 
-if [ "$mode" != vm ] && [ "$prepare_only" = 0 ]; then
+if [ "$mode" != vm ] && [ "$prepare_only" = 0 ] && [ "$foreign" = 0 ]; then
   if native_vcan_possible; then
     run_native
     exit $?
@@ -154,13 +175,16 @@ fi
 
 # ------------------------------------------------------------------ VM: tools
 
-for tool in qemu-system-x86_64 cpio depmod modprobe dpkg apt-get apt-cache gzip flock timeout; do
-  command -v "$tool" >/dev/null || die "$tool not found: run .ci/setup (packages qemu-system-x86, cpio, kmod, ...)"
+[ "$mode" = native ] && [ "$foreign" = 1 ] && die "--mode native: cannot run $arch natively on $(uname -m)"
+for tool in "$qemu_system" cpio depmod modprobe dpkg apt-get apt-cache gzip flock timeout; do
+  command -v "$tool" >/dev/null || die "$tool not found: run .ci/setup (packages $qemu_package, cpio, kmod, ...)"
 done
 busybox=/bin/busybox
-[ -x "$busybox" ] || die "$busybox missing: install busybox-static"
-file_out=$(LC_ALL=C readelf -d "$busybox" 2>/dev/null | grep -c NEEDED || true)
-[ "$file_out" = 0 ] || die "$busybox is dynamically linked: install busybox-static"
+if [ "$foreign" = 0 ]; then
+  [ -x "$busybox" ] || die "$busybox missing: install busybox-static"
+  file_out=$(LC_ALL=C readelf -d "$busybox" 2>/dev/null | grep -c NEEDED || true)
+  [ "$file_out" = 0 ] || die "$busybox is dynamically linked: install busybox-static"
+fi
 
 # ------------------------------------------------------------------ VM: kernel cache
 
@@ -170,12 +194,14 @@ flock 9
 
 kpkg=${MARKLOOP_HIL_KERNEL_PACKAGE:-}
 if [ -z "$kpkg" ]; then
-  kpkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/{print $2; exit}')
+  kpkg=$(apt-cache depends "linux-image-$deb_arch:$deb_arch" 2>/dev/null |
+    awk '/Depends: linux-image-[0-9]/{print $2; exit}')
+  kpkg=${kpkg%:*}
 fi
 if [ -z "$kpkg" ]; then
   # No apt lists: use whatever kernel is cached already.
-  kpkg=$(ls -d "$cache"/linux-image-*-amd64 2>/dev/null | tail -n1 | xargs -r -n1 basename || true)
-  [ -n "$kpkg" ] || die "cannot determine the kernel package (apt-cache depends linux-image-amd64 gave nothing; run apt-get update)"
+  kpkg=$(ls -d "$cache"/linux-image-*-"$deb_arch" 2>/dev/null | tail -n1 | xargs -r -n1 basename || true)
+  [ -n "$kpkg" ] || die "cannot determine the kernel package (apt-cache depends linux-image-$deb_arch:$deb_arch gave nothing; run apt-get update$([ "$foreign" = 1 ] && echo ", after dpkg --add-architecture $deb_arch"))"
 fi
 kver=${kpkg#linux-image-}
 kdir=$cache/$kpkg
@@ -185,13 +211,20 @@ base_modules=(virtio_pci 9pnet_virtio 9p can can_raw can_dev vcan sch_tbf)
 media_modules=(vivid)
 # The cache is rebuilt when the module selection changes.
 cache_key="modules: ${base_modules[*]} / ${media_modules[*]}"
+# A foreign guest gets its own shell and CAN tools (the host's are x86).
+# Their shared libraries come from the host's multiarch directories (.ci/setup
+# installs the :arm64 runtime libraries of can-utils and iproute2).
+# dash is the commands' /bin/sh: Debian's busybox sh prefers its own applets
+# (its tc lacks tbf) to the programs on PATH.
+guest_packages=(busybox-static can-utils iproute2 dash)
+[ "$foreign" = 0 ] || cache_key="$cache_key / ${guest_packages[*]}:$deb_arch + stdbuf"
 
 if [ ! -f "$kdir/ready" ] || [ "$(cat "$kdir/ready")" != "$cache_key" ]; then
   log "preparing kernel $kver in $kdir (one-time download of $kpkg, ~70 MB)"
   rm -rf "$kdir" "$cache/extract"
   mkdir -p "$cache/debs" "$cache/extract"
-  (cd "$cache/debs" && rm -f "$kpkg"_*.deb && apt-get download -q "$kpkg") ||
-    die "apt-get download $kpkg failed (is the Debian archive reachable? try apt-get update)"
+  (cd "$cache/debs" && rm -f "$kpkg"_*.deb && apt-get download -q "$kpkg:$deb_arch") ||
+    die "apt-get download $kpkg:$deb_arch failed (is the Debian archive reachable? try apt-get update)"
   deb=$(ls "$cache/debs/$kpkg"_*.deb | head -n1)
   dpkg -x "$deb" "$cache/extract" || die "dpkg -x $deb failed"
   src=$cache/extract
@@ -225,6 +258,26 @@ if [ ! -f "$kdir/ready" ] || [ "$(cat "$kdir/ready")" != "$cache_key" ]; then
   resolve "${media_modules[@]}" | grep -vxF -f <(resolve "${base_modules[@]}") |
     copy_list "$kdir/media.load" || true
   [ -s "$kdir/base.load" ] || die "no modules resolved for ${base_modules[*]}"
+  if [ "$foreign" = 1 ]; then
+    # The initramfs shell and CAN tools must be the guest's ($deb_arch).
+    mkdir -p "$kdir/bin" "$cache/extract-guest"
+    for p in "${guest_packages[@]}"; do
+      (cd "$cache/debs" && apt-get download -q "$p:$deb_arch") || die "apt-get download $p:$deb_arch failed"
+    done
+    for p in "${guest_packages[@]}"; do dpkg -x "$cache/debs/$p"_*.deb "$cache/extract-guest"; done
+    cp "$cache/extract-guest/bin/busybox" "$kdir/busybox"
+    cp "$cache/extract-guest/usr/bin"/* "$kdir/bin/"
+    for d in bin sbin; do
+      [ -d "$cache/extract-guest/$d" ] && find "$cache/extract-guest/$d" -type f -exec cp {} "$kdir/bin/" \;
+    done
+    # The tests wrap candump in `stdbuf -oL` (coreutils, an LD_PRELOAD
+    # library of the host's architecture); candump flushes every frame it
+    # prints, so in the guest the wrapper just runs the command.
+    printf '%s\n' '#!/bin/sh' 'while [ $# -gt 0 ]; do case "$1" in -i|-o|-e) shift 2 ;; -*) shift ;; *) break ;; esac; done' \
+      'exec "$@"' >"$kdir/bin/stdbuf"
+    chmod 755 "$kdir/bin/stdbuf"
+    rm -rf "$cache/extract-guest"
+  fi
   echo "$kver" >"$kdir/version"
   rm -rf "$cache/extract" "$cache/debs"
   echo "$cache_key" >"$kdir/ready"
@@ -243,7 +296,15 @@ build_initramfs() {  # $1 = output file, $2 = init script text
   root=$(mktemp -d "$results/initramfs.XXXXXX")
   mkdir -p "$root/bin" "$root/lib/modules" "$root/proc" "$root/sys" "$root/dev" \
     "$root/newroot" "$root/results"
-  cp "$busybox" "$root/bin/busybox"
+  if [ "$foreign" = 1 ]; then
+    cp "$kdir/busybox" "$root/bin/busybox"
+    # Not in /bin: busybox --install would replace them with its applets.
+    mkdir -p "$root/guest/bin"
+    cp "$kdir/bin"/* "$root/guest/bin/"
+  else
+    cp "$busybox" "$root/bin/busybox"
+  fi
+  echo "$foreign" >"$root/foreign"
   cp "$kdir"/modules/*.ko "$root/lib/modules/"
   cp "$kdir/base.load" "$root/base.load"
   if [ "$with_vivid" = 1 ]; then cp "$kdir/media.load" "$root/media.load"; else : >"$root/media.load"; fi
@@ -280,6 +341,45 @@ mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144 results /results || fa
 [ -f /results/probe ] && { say "probe ok"; echo ok >/results/out/probe; sync; poweroff -f; }
 mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144,cache=loose,ro hostroot /newroot ||
   fatal "cannot mount the host root over 9p"
+if [ "$(cat /foreign)" = 1 ]; then
+  # Guest of another architecture: stay in the initramfs (busybox sh) and
+  # link the host's directories in, so that /lib/ld-linux-*.so.1, the
+  # multiarch libraries, /etc and the checkout resolve as on the host.
+  rm -rf /lib
+  for d in /newroot/* /newroot/.[!.]*; do
+    n=${d#/newroot}
+    [ -e "$d" ] || [ -L "$d" ] || continue
+    case "$n" in /bin|/sbin|/guest|/proc|/sys|/dev|/run|/tmp|/results|/newroot|/init|/foreign|/base.load|/media.load) continue ;; esac
+    [ -e "$n" ] || ln -s "$d" "$n"
+  done
+  mkdir -p /sbin /run /tmp /dev/pts /dev/shm
+  mount -t devpts devpts /dev/pts
+  mount -t tmpfs tmpfs /dev/shm
+  mount -t tmpfs -o mode=1777 tmpfs /run || fatal "cannot mount tmpfs on /run"
+  mkdir -p /run/hil-tmp /run/hil-share
+  chmod 1777 /run/hil-tmp
+  mount -o bind /results /run/hil-share || fatal "cannot bind the results share"
+  ln -sf /guest/bin/dash /bin/sh
+  export PATH=/guest/bin:/bin:/sbin HOME=/run/hil-tmp TMPDIR=/run/hil-tmp LANG=C.UTF-8 HIL_RESULTS=/run/hil-share/out HIL_IN_VM=1
+  { ip link set lo up && ip link add dev vcan0 type vcan && ip link set vcan0 up; } || fatal "cannot create vcan0"
+  say "vcan0 up, running commands (no chroot: $(uname -m) guest)"
+  cwd=$(cat /results/cwd)
+  for f in /results/cmds/*; do
+    id=${f##*/}
+    say "command $id start"
+    (cd "$cwd" && exec /bin/sh "/run/hil-share/cmds/$id") >/results/out/$id.log 2>&1 </dev/null
+    rc=$?
+    echo $rc >/results/out/$id.rc
+    sync
+    say "command $id exit $rc"
+  done
+  echo done >/results/out/done
+  sync
+  umount /run/hil-share 2>/dev/null
+  umount /results 2>/dev/null
+  say "powering off"
+  poweroff -f
+fi
 R=/newroot
 mount -t proc proc $R/proc
 mount -t sysfs sys $R/sys
@@ -332,11 +432,19 @@ build_initramfs "$initrd" "$init_script"
 
 qemu_boot() {  # $1 = accel, $2 = timeout seconds, $3 = console log
   local rc=0
-  timeout -k 10 "$2" qemu-system-x86_64 \
-    -accel "$1" -cpu "$([ "$1" = kvm ] && echo host || echo max)" -m 1024 -smp 2 \
+  local machine
+  if [ "$arch" = aarch64 ]; then
+    machine=(-M virt -cpu cortex-a72 -accel "$1")
+    console=ttyAMA0
+  else
+    machine=(-accel "$1" -cpu "$([ "$1" = kvm ] && echo host || echo max)")
+    console=ttyS0
+  fi
+  timeout -k 10 "$2" "$qemu_system" \
+    "${machine[@]}" -m 1024 -smp 2 \
     -display none -no-reboot -monitor none -serial "file:$3" \
     -kernel "$kdir/vmlinuz" -initrd "$initrd" \
-    -append "console=ttyS0 quiet panic=-1" \
+    -append "console=$console quiet panic=-1" \
     -virtfs local,path=/,mount_tag=hostroot,security_model=none,readonly=on,multidevs=remap \
     -virtfs "local,path=$results,mount_tag=results,security_model=none,multidevs=remap" \
     </dev/null >"$3.qemu" 2>&1 || rc=$?
@@ -345,6 +453,7 @@ qemu_boot() {  # $1 = accel, $2 = timeout seconds, $3 = console log
 
 choose_accel() {
   if [ "$accel" != auto ]; then echo "$accel"; return; fi
+  if [ "$foreign" = 1 ]; then echo tcg; return; fi
   if [ ! -r /dev/kvm ] || [ ! -w /dev/kvm ]; then echo tcg; return; fi
   local probe_file=$cache/kvm-probe-$(uname -r)-$kver
   if [ ! -f "$probe_file" ]; then
