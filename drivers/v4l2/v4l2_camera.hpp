@@ -128,6 +128,10 @@ class V4l2Camera {
   std::error_code release(const FrameView& frame) noexcept;
 
   State state() const noexcept { return state_; }
+  // No frame within frame_timeout, or the device is being reopened: what the
+  // Status message reports as FaultCameraLost (with counters().dropped as
+  // FramesDropped).
+  bool camera_lost() const noexcept { return state_ == State::Stalled || state_ == State::Recovering; }
   const CameraCounters& counters() const noexcept { return counters_; }
   const DeviceInfo& device_info() const noexcept { return info_; }
   const NegotiatedFormat& format() const noexcept { return format_; }
