@@ -155,7 +155,7 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
   std::fprintf(f, "\"/>\n");
 
   for (const WorldMarking& m : *c.markings)
-    std::fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"2.2\" fill=\"%s\"/>\n", layout.px(m.x),
+    std::fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"3\" fill=\"%s\"/>\n", layout.px(m.x),
                  layout.py(m.y), svg_colour(kClassColours[m.label]).c_str());
 
   for (const LoopOutcome& loop : *c.loops) {
@@ -232,7 +232,7 @@ bool write_png(const std::string& path, const FigureContent& c, std::string& err
   if (polyline.size() > 1)
     cv::polylines(image, polyline, false, bgr(kRoute), 1, cv::LINE_AA);
   for (const WorldMarking& m : *c.markings)
-    cv::circle(image, point(m.x, m.y), 2, bgr(kClassColours[m.label]), cv::FILLED, cv::LINE_AA);
+    cv::circle(image, point(m.x, m.y), 3, bgr(kClassColours[m.label]), cv::FILLED, cv::LINE_AA);
   for (const LoopOutcome& loop : *c.loops) {
     if (loop.verdict == Verdict::Unjudged) continue;
     const cv::Scalar colour = bgr(loop.verdict == Verdict::Correct ? kCorrect : kWrong);

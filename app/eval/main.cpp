@@ -342,7 +342,7 @@ int main(int argc, char** argv) {
   std::printf("  latency, median / p99 / max:\n");
   print_spread("  CAN stamp - QueryTime", loops.latency_s, 1000.0, "ms");
   print_spread("  CAN stamp - time of QueryFrame", loops.since_query_frame_s, 1000.0, "ms");
-  print_spread("  CAN stamp - latest frame before it", loops.processing_s, 1000.0, "ms");
+  print_spread("  CAN stamp - last frame before it", loops.processing_s, 1000.0, "ms");
   if (loops.query_time_mismatches > 0)
     std::printf("  note: %zu of %zu detections carry a QueryTime that is not frames.csv's time of\n"
                 "        QueryFrame (the DBC's definition of QueryTime)\n",
@@ -388,13 +388,22 @@ int main(int argc, char** argv) {
   std::snprintf(text, sizeof text, "markloop: %zu loop detections, %zu wrong (tolerance %g m)",
                 loops.outcomes.size(), e.wrong, o.tolerance);
   figure.title = text;
-  std::snprintf(text, sizeof text,
-                "precision %s, revisits %zu/%zu, pose error mean %.2f m %.2f deg, latency %.0f ms, "
-                "route %.2f km",
-                percent_text(e.correct, e.correct + e.wrong).c_str(), e.revisit_segments_detected,
-                e.revisit_segments, e.translation_error_mean_m, e.rotation_error_mean_deg,
-                loops.latency_s.median * 1000.0, length_m / 1000.0);
-  figure.subtitle = text;
+  std::string subtitle = "precision " + percent_text(e.correct, e.correct + e.wrong);
+  std::snprintf(text, sizeof text, ", revisits %zu/%zu", e.revisit_segments_detected, e.revisit_segments);
+  subtitle += text;
+  if (e.pose_errors > 0) {
+    std::snprintf(text, sizeof text, ", pose error mean %.2f m %.2f deg", e.translation_error_mean_m,
+                  e.rotation_error_mean_deg);
+    subtitle += text;
+  }
+  if (loops.since_query_frame_s.count > 0) {
+    std::snprintf(text, sizeof text, ", query frame to CAN median %.0f ms",
+                  loops.since_query_frame_s.median * 1000.0);
+    subtitle += text;
+  }
+  std::snprintf(text, sizeof text, ", route %.2f km", length_m / 1000.0);
+  subtitle += text;
+  figure.subtitle = subtitle;
   if (!write_svg(o.svg, figure, error)) fail(error);
   if (!write_png(o.png, figure, error)) fail(error);
   std::printf("\npicture: %s, %s\n", o.svg.c_str(), o.png.c_str());

@@ -29,7 +29,7 @@ check "synthetic run" 0 "precision +50.0 %" -- "$eval_tool" "$run" --json "$run/
 cp "$work/out" "$work/run.txt"
 for pattern in "correct / wrong +1 / 1" "revisited 100 m stretches detected +1 of 5" \
     "relative pose error, mean +0.400 m, 1.50 deg" "CAN stamp - QueryTime +1605.0 / 1704.0 / 1704.0 ms" \
-    "CAN stamp - time of QueryFrame +1605.0 / 1704.0 / 1704.0 ms" "CAN stamp - latest frame before it +5.0 / 6.0 / 6.0 ms" \
+    "CAN stamp - time of QueryFrame +1605.0 / 1704.0 / 1704.0 ms" "CAN stamp - last frame before it +5.0 / 6.0 / 6.0 ms" \
     "LoopDetection +16 accepted, 2 rejected \(CRC 1, alive counter 1" "2 complete, 1 incomplete" \
     "detection recall \(any label\) +75.0 %" "detection precision \(any label\) +60.0 %" \
     "classification accuracy +66.7 %" "longest loop time \(any cycle\) +12.50 ms"; do
