@@ -33,7 +33,12 @@
 // 320x180..3840x2160 and rates (640x480: 1..25 fps); the HDMI input (3) takes
 // its size and 60 Hz rate from DV timings and has no settable rate. Output
 // looping (control loop_video on the capture node) needs capture input HDMI,
-// output HDMI (1), the same DV timings, pixel format and size on both.
+// output HDMI (1), the same DV timings, pixel format and size on both; then
+// GREY and YUYV frames come back bit-exact (no conversion needed). Removal:
+// writing vivid.0 to /sys/bus/platform/drivers/vivid/unbind makes open fds
+// fail with ENODEV/POLLHUP and the nodes vanish; .../bind brings them back
+// with default settings. A stall: control percentage_of_dropped_buffers=100
+// (vivid keeps numbering the frames it drops, so the gap shows as dropped).
 #pragma once
 
 #include <array>
