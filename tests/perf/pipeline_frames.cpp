@@ -1,0 +1,92 @@
+// Runs N frames of one per-frame pipeline stage and nothing else worth
+// counting, for instruction counts under emulation
+// (tests/perf/instruction-counts.sh). Everything a stage needs is prepared
+// before the first frame and does not depend on N, so the difference between
+// two runs with different N is the cost of the extra frames alone.
+//
+//   markloop-pipeline-frames --stage engine --frames N
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cli/cli.hpp"
+#include "engine/sequence_engine.hpp"
+#include "sim/drive.hpp"
+#include "sim/world.hpp"
+
+namespace {
+
+using namespace markloop;
+
+constexpr const char* kUsage =
+    "usage: markloop-pipeline-frames --stage STAGE --frames N\n"
+    "Runs N frames of one pipeline stage (prepared beforehand, independent of N).\n"
+    "  --stage engine   the sequence engine on the simulated ring drive (seed 1);\n"
+    "                   frames past the end of the drive repeat it, later in time\n"
+    "  --frames N       number of frames to process (0 allowed)\n"
+    "Prints the number of frames and a checksum of the stage's output.\n";
+
+struct CountingSink final : MatchSink {
+  std::size_t matches = 0;
+  void on_match(const MatchEvent&) override { ++matches; }
+};
+
+int run_engine(unsigned frames) {
+  const auto scenario = sim::make_scenario("ring", 1);
+  if (!scenario) cli::fail("the simulator has no 'ring' scenario");
+  sim::Drive drive(*scenario, sim::DriveConfig{}, 2);
+  std::vector<sim::DriveFrame> drive_frames;
+  sim::DriveFrame frame;
+  while (drive.next(frame)) drive_frames.push_back(frame);
+  if (drive_frames.empty()) cli::fail("the ring drive has no frames");
+
+  EngineConfig config;
+  config.database.sequence_capacity = 1 << 16;
+  config.database.landmark_capacity = 1 << 14;
+  auto engine = std::make_unique<SequenceEngine>(config);
+  CountingSink sink;
+  double lap_offset = 0.0;
+  std::size_t i = 0;
+  for (unsigned n = 0; n < frames; ++n) {
+    const sim::DriveFrame& f = drive_frames[i];
+    FrameInput input = f.estimate;
+    input.frame = n;
+    input.t += lap_offset;
+    engine->process_frame(input, f.observations, sink);
+    if (++i == drive_frames.size()) {  // drive the ring again, later
+      i = 0;
+      lap_offset = input.t + 1.0;
+    }
+  }
+  std::printf("stage engine: %u frames, %zu matches\n", frames, sink.matches);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  cli::program_name() = "markloop-pipeline-frames";
+  std::string stage;
+  long frames = -1;
+  for (int a = 1; a < argc; ++a) {
+    const std::string arg = argv[a];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (a + 1 >= argc) cli::fail(arg + ": missing value (see --help)");
+    if (arg == "--stage") {
+      stage = argv[++a];
+    } else if (arg == "--frames") {
+      frames = cli::parse_whole("--frames", argv[++a]);
+    } else {
+      cli::fail("unknown option " + arg + " (see --help)");
+    }
+  }
+  if (stage.empty()) cli::fail("--stage is required (see --help)");
+  if (frames < 0) cli::fail("--frames is required (see --help)");
+  if (stage == "engine") return run_engine(static_cast<unsigned>(frames));
+  cli::fail("unknown stage '" + stage + "' (see --help)");
+}
