@@ -7,6 +7,9 @@ namespace markloop::sim {
 
 namespace {
 constexpr double kDegToRad = std::numbers::pi / 180.0;
+// A wrong label is one of the symbol classes (arrows, words, numbers, bike,
+// diamond: the first 14); stop lines and crosswalks are not mistaken for them.
+constexpr std::size_t kConfusableClasses = 14;
 }
 
 Drive::Drive(const Scenario& scenario, const DriveConfig& config, std::uint64_t seed)
@@ -57,13 +60,12 @@ bool Drive::next(DriveFrame& out) {
 
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::normal_distribution<double> gauss(0.0, 1.0);
-  const auto& classes = marking_class_names();
   const auto observe = [&](double ahead, double left, Label label, std::uint32_t id) {
     const double sigma = config_.position_noise_m + config_.position_noise_per_m * ahead;
     const Pose2 seen = compose(estimate_, Pose2{ahead + sigma * gauss(rng_),
                                                 left + sigma * gauss(rng_), 0.0});
     if (unit(rng_) < config_.label_error_probability)
-      label = static_cast<Label>(rng_() % classes.size());
+      label = static_cast<Label>(rng_() % kConfusableClasses);
     out.observations.push_back({label, static_cast<float>(seen.x), static_cast<float>(seen.y)});
     out.observed_marking_ids.push_back(id);
   };
@@ -92,7 +94,7 @@ bool Drive::next(DriveFrame& out) {
     std::uniform_real_distribution<double> ahead(config_.view_near_m, config_.view_far_m);
     std::uniform_real_distribution<double> left(-config_.view_half_width_m,
                                                 config_.view_half_width_m);
-    observe(ahead(rng_), left(rng_), static_cast<Label>(rng_() % classes.size()), UINT32_MAX);
+    observe(ahead(rng_), left(rng_), static_cast<Label>(rng_() % kConfusableClasses), UINT32_MAX);
   }
   ++frame_;
   return true;

@@ -1,57 +1,172 @@
 // markloop-sim: drives a car through a world of road markings and writes
-// what it saw, in the file formats the ECU's tools read.
-#include <cerrno>
+// what its camera and its vehicle bus saw, in the file formats the ECU reads,
+// with the ground truth next to it.
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
-#include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
-#include <vector>
 
 #include "cli/cli.hpp"
-#include "sim/drive.hpp"
+#include "perception/camera_model.hpp"
+#include "sim/recorder.hpp"
+#include "sim/route.hpp"
 #include "sim/world.hpp"
 
 namespace {
 
-using markloop::Pose2;
+using namespace markloop;
 using namespace markloop::sim;
 using namespace markloop::cli;
 
-constexpr const char* kUsage = R"(usage: markloop-sim drive --scenario NAME --out DIR [options]
+constexpr const char* kUsage = R"(usage: markloop-sim drive (--scenario NAME | --route FILE) --out DIR [options]
+       markloop-sim training-set --out DIR [--seed N] [--frames N] [--camera FILE]
        markloop-sim list
 
 drive: simulate a drive and write, into DIR,
-  markings.txt   observed road markings, one record per detection, in the
-                 road_marking_centroids_3Dposition.txt format (count, then
-                 "frame x y z label"; camera axes: x right, y down, z ahead)
-  poses.txt      the car's estimated (drifting) pose per frame, KITTI 3x4
-  frames.csv     ground truth per frame: frame,t,x,y,yaw
+  frames.y4m     the camera's frames (YUV4MPEG2, mono, camera size, --fps);
+                 frame k is at time k/fps
+  odometry.log   VehicleOdometry CAN frames every 20 ms (candump -l format,
+                 vcan0, E2E CRC and alive counter); time stamps are seconds
+                 since the first frame: the log starts at (0000000000.000000)
+  frames.csv     ground truth per frame: frame,t,x,y,yaw (world frame)
   markings.csv   the world's markings: id,class,x,y,heading
+  visible.csv    per frame, the markings wholly inside the image whose centre
+                 is 3..25 m ahead and not behind a vehicle:
+                 frame,id,class,x1,y1,...,x4,y4 (corners in pixels: near-left,
+                 near-right, far-right, far-left)
+  camera.yaml    the calibration used
+  markings.txt   per-frame marking observations (road_marking_centroids
+                 format) and poses.txt, the drifting pose estimate (KITTI
+                 3x4), for markloop-replay
 
 options:
   --scenario NAME   built-in scenario (see "list"); default loop
+  --route FILE      drive a pose file instead: one pose per line, KITTI (12
+                    numbers, 10 Hz) or TUM (t x y z qx qy qz qw); the world is
+                    laid along it, one set of markings per road however often
+                    it is driven
   --out DIR         output folder (created if missing); required
-  --seed N          random seed for the world and the sensors; default 1
-  --speed M/S       driving speed; default 10
+  --seed N          seed of the world, the sensors and the conditions; default 1
+  --speed M/S       driving speed; default 10, or a route's own average speed
   --fps HZ          camera frame rate; default 10
+  --laps N          drive a built-in scenario's lap N times
+  --camera FILE     calibration (OpenCV YAML, as the ECU reads); default the
+                    built-in 1280x512 camera (app/cameras/sim.yaml)
+  --light L         day, dusk, night or wet-glare; default day
+  --wear W          worst paint wear 0..1; default 0.35
+  --no-shadows      no tree or building shadows
+  --occluders P     share of 12 s windows with a vehicle ahead; default 0.3
+  --noise SIGMA     sensor noise in grey levels; default 2
+  --class-weights LIST  NAME=W,... relative frequency of the marking classes
+  --no-render       no frames.y4m / visible.csv (fast, for long drives)
+  --max-frames N    stop after N frames
   --help            this text
+
+training-set: images/NNNNNN.png and annotations.csv (image,label,x1,y1,...,
+  x4,y4, as the roadmarks dataset) and camera.yaml: --frames whole frames
+  (default 200) of a world of its own, every class equally often, random
+  light, wear, noise and vehicles; seeds are the given seed + 2^32, so never
+  a drive's.
 )";
 
-// Ground frame (x ahead, y left) to the camera-style world of the paper's
-// files (x right, y down, z ahead); the ground lies 1.5 m below the camera.
-void write_kitti_pose(FILE* f, const Pose2& p) {
-  const double c = std::cos(p.yaw), s = std::sin(p.yaw);
-  std::fprintf(f, "%.6f 0 %.6f %.4f 0 1 0 0 %.6f 0 %.6f %.4f\n", c, -s, -p.y, s, c, p.x);
+perception::CameraModel camera_from(const std::string& path) {
+  if (path.empty()) return perception::default_camera_model();
+  std::string error;
+  auto model = perception::load_camera_model(path, error);
+  if (!model) fail(error);
+  return *model;
 }
 
 int drive(int argc, char** argv) {
-  std::string scenario_name = "loop";
-  std::string out_dir;
-  std::uint64_t seed = 1;
-  DriveConfig drive_config;
+  std::string scenario_name, route_file, out_dir, camera_file;
+  RecordOptions options;
+  std::optional<double> speed;
+  std::optional<unsigned> laps;
+  WorldConfig world;
+  for (int i = 2; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (arg == "--no-shadows") { options.conditions.shadows = false; continue; }
+    if (arg == "--no-render") { options.render = false; continue; }
+    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
+    const char* value = argv[++i];
+    if (arg == "--scenario") scenario_name = value;
+    else if (arg == "--route") route_file = value;
+    else if (arg == "--out") out_dir = value;
+    else if (arg == "--seed") options.seed = parse_whole(arg, value);
+    else if (arg == "--speed") speed = parse_number(arg, value);
+    else if (arg == "--fps") options.drive.fps = parse_number(arg, value);
+    else if (arg == "--laps") laps = parse_whole(arg, value);
+    else if (arg == "--camera") camera_file = value;
+    else if (arg == "--max-frames") options.max_frames = parse_whole(arg, value);
+    else if (arg == "--occluders") options.conditions.occluder_probability = parse_number(arg, value);
+    else if (arg == "--noise") options.conditions.noise_sigma = parse_number(arg, value);
+    else if (arg == "--wear") options.conditions.paint_wear = parse_number(arg, value);
+    else if (arg == "--light") {
+      const auto light = illumination_from_name(value);
+      if (!light) fail(std::string("--light: unknown '") + value + "' (day, dusk, night, wet-glare)");
+      options.conditions.light = *light;
+    } else if (arg == "--class-weights") {
+      std::array<double, kClassCount> weights{};
+      std::string error;
+      if (!parse_class_weights(value, weights, error)) fail("--class-weights: " + error);
+      world.class_weights = weights;
+    } else {
+      fail("unknown option " + std::string(arg) + " (see --help)");
+    }
+  }
+  if (out_dir.empty()) fail("--out DIR is required (see --help)");
+  if (!scenario_name.empty() && !route_file.empty()) fail("give --scenario or --route, not both");
+  if (speed && *speed <= 0) fail("--speed must be positive");
+  if (options.drive.fps <= 0 || options.drive.fps > 1000) fail("--fps must be in (0, 1000]");
+  if (laps && *laps == 0) fail("--laps must be at least 1");
+  if (options.conditions.paint_wear < 0 || options.conditions.paint_wear > 1) fail("--wear must be in 0..1");
+  if (options.conditions.occluder_probability < 0 || options.conditions.occluder_probability > 1)
+    fail("--occluders must be in 0..1");
+  if (options.conditions.noise_sigma < 0 || options.conditions.noise_sigma > 100)
+    fail("--noise must be in 0..100");
+
+  std::optional<Scenario> scenario;
+  if (!route_file.empty()) {
+    std::string error;
+    auto route = load_route(route_file, error);
+    if (!route) fail(error);
+    const double route_speed = route->average_speed_mps();
+    if (!speed && route_speed > 0.5) speed = route_speed;
+    scenario = make_route_scenario(route_file, std::move(route->path), options.seed, world);
+    if (laps) fail("--laps applies to built-in scenarios only");
+  } else {
+    if (scenario_name.empty()) scenario_name = "loop";
+    scenario = make_scenario(scenario_name, options.seed, world);
+    if (!scenario) fail("unknown scenario '" + scenario_name + "' (see: markloop-sim list)");
+    if (laps) scenario->laps = static_cast<int>(*laps);
+  }
+  options.drive.speed_mps = speed.value_or(10.0);
+  options.out_dir = out_dir;
+  options.conditions.seed = options.seed * 0x9E3779B97F4A7C15ULL + 0xC0D1;
+  const perception::CameraModel camera = camera_from(camera_file);
+
+  RecordSummary summary;
+  std::string error;
+  if (!record_drive(*scenario, camera, options, summary, error)) fail(error);
+  std::printf("markloop-sim: %s (%s): %zu frames, %zu markings in the world, %zu detections, "
+              "%zu odometry frames",
+              scenario->name.c_str(), scenario->description.c_str(), summary.frames,
+              scenario->markings.size(), summary.detections, summary.odometry_messages);
+  if (options.render && summary.frames > 0)
+    std::printf(", %zu visible markings, %.1f ms per rendered frame", summary.visible_rows,
+                1000.0 * summary.render_seconds / static_cast<double>(summary.frames));
+  std::printf(" -> %s\n", out_dir.c_str());
+  return 0;
+}
+
+int training_set(int argc, char** argv) {
+  TrainingSetOptions options;
+  std::string camera_file;
   for (int i = 2; i < argc; ++i) {
     const std::string_view arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -60,60 +175,20 @@ int drive(int argc, char** argv) {
     }
     if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
     const char* value = argv[++i];
-    if (arg == "--scenario") scenario_name = value;
-    else if (arg == "--out") out_dir = value;
-    else if (arg == "--seed") seed = static_cast<std::uint64_t>(parse_number(arg, value));
-    else if (arg == "--speed") drive_config.speed_mps = parse_number(arg, value);
-    else if (arg == "--fps") drive_config.fps = parse_number(arg, value);
+    if (arg == "--out") options.out_dir = value;
+    else if (arg == "--seed") options.seed = parse_whole(arg, value);
+    else if (arg == "--frames") options.frames = parse_whole(arg, value);
+    else if (arg == "--camera") camera_file = value;
     else fail("unknown option " + std::string(arg) + " (see --help)");
   }
-  if (out_dir.empty()) fail("--out DIR is required (see --help)");
-  if (drive_config.speed_mps <= 0 || drive_config.fps <= 0)
-    fail("--speed and --fps must be positive");
-  const auto scenario = make_scenario(scenario_name, seed);
-  if (!scenario) fail("unknown scenario '" + scenario_name + "' (see: markloop-sim list)");
-
-  const std::filesystem::path dir(out_dir);
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) fail("cannot create " + dir.string() + ": " + ec.message());
-
-  Drive drive(*scenario, drive_config, seed * 7919 + 17);
-  const auto& classes = marking_class_names();
-  std::vector<std::string> records;
-  FILE* poses = open_output(dir / "poses.txt");
-  FILE* frames = open_output(dir / "frames.csv");
-  std::fprintf(frames, "frame,t,x,y,yaw\n");
-  DriveFrame frame;
-  char line[160];
-  while (drive.next(frame)) {
-    write_kitti_pose(poses, frame.estimate.pose);
-    std::fprintf(frames, "%u,%.3f,%.4f,%.4f,%.6f\n", frame.estimate.frame, frame.estimate.t,
-                 frame.truth.x, frame.truth.y, frame.truth.yaw);
-    for (const auto& obs : frame.observations) {
-      std::snprintf(line, sizeof line, "%u %.4f 1.5 %.4f %s", frame.estimate.frame, -obs.y, obs.x,
-                    classes.at(obs.label).c_str());
-      records.emplace_back(line);
-    }
-  }
-  close_output(poses, dir / "poses.txt");
-  close_output(frames, dir / "frames.csv");
-
-  FILE* markings = open_output(dir / "markings.txt");
-  std::fprintf(markings, "%zu\n", records.size());
-  for (const auto& r : records) std::fprintf(markings, "%s\n", r.c_str());
-  close_output(markings, dir / "markings.txt");
-
-  FILE* world = open_output(dir / "markings.csv");
-  std::fprintf(world, "id,class,x,y,heading\n");
-  for (const Marking& m : scenario->markings)
-    std::fprintf(world, "%u,%s,%.4f,%.4f,%.6f\n", m.id, classes.at(m.label).c_str(), m.x, m.y,
-                 m.heading);
-  close_output(world, dir / "markings.csv");
-
-  std::printf("markloop-sim: %s (%s): %zu frames, %zu markings in the world, %zu detections -> %s\n",
-              scenario->name.c_str(), scenario->description.c_str(), drive.frame_count(),
-              scenario->markings.size(), records.size(), dir.c_str());
+  if (options.out_dir.empty()) fail("--out DIR is required (see --help)");
+  if (options.frames == 0) fail("--frames must be at least 1");
+  const perception::CameraModel camera = camera_from(camera_file);
+  std::size_t annotations = 0;
+  std::string error;
+  if (!record_training_set(camera, options, annotations, error)) fail(error);
+  std::printf("markloop-sim: training set: %zu images, %zu annotated markings -> %s\n",
+              options.frames, annotations, options.out_dir.c_str());
   return 0;
 }
 
@@ -123,10 +198,11 @@ int main(int argc, char** argv) {
   program_name() = "markloop-sim";
   const std::string_view command = argc > 1 ? argv[1] : "";
   if (command == "drive") return drive(argc, argv);
+  if (command == "training-set") return training_set(argc, argv);
   if (command == "list") {
     for (const auto& name : scenario_names()) {
       const auto s = make_scenario(name, 1);
-      std::printf("%-8s %s\n", name.c_str(), s->description.c_str());
+      std::printf("%-9s %s\n", name.c_str(), s->description.c_str());
     }
     return 0;
   }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <unordered_map>
 
 namespace markloop::sim {
 
@@ -11,17 +12,24 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-struct ClassWeight {
-  const char* name;
-  double weight;
+// Index by Label. The first 14 weights are the mix the simulator has always
+// drawn (arrows dominate); the legacy scenarios keep it exactly, so their
+// worlds do not change with the renderer.
+constexpr std::array<double, kClassCount> kLegacyWeights = {
+    0.18, 0.15, 0.10, 0.05, 0.05,  // forward, leftturn, rightturn, forward&left, forward&right
+    0.05, 0.05, 0.05,              // stop, ped, xing
+    0.08, 0.02,                    // bike, rail
+    0.05, 0.10, 0.05,              // 25, 35, 40
+    0.02,                          // diamond
+    0.0, 0.0,                      // stopline, crosswalk
 };
-// Roughly the mix seen on urban roads; arrows dominate.
-constexpr ClassWeight kClasses[] = {
-    {"forward", 0.18},     {"leftturn", 0.15}, {"rightturn", 0.10}, {"forward&left", 0.05},
-    {"forward&right", 0.05}, {"stop", 0.05},   {"ped", 0.05},       {"xing", 0.05},
-    {"bike", 0.08},        {"rail", 0.02},     {"25", 0.05},        {"35", 0.10},
-    {"40", 0.05},          {"diamond", 0.02},
-};
+
+std::uint64_t mix(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ULL;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+  return x ^ (x >> 31);
+}
 
 // Arc of a circle from angle a0 to a1 (radians), centre (cx, cy).
 void add_arc(Path& path, double cx, double cy, double radius, double a0, double a1) {
@@ -54,34 +62,177 @@ Path rounded_rectangle(double width, double height, double radius) {
   return p;
 }
 
-void lay_markings(Scenario& scenario, std::mt19937_64& rng, const WorldConfig& config) {
-  std::uniform_real_distribution<double> spacing(config.row_spacing_min_m,
-                                                 config.row_spacing_max_m);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  std::vector<double> weights;
-  for (const ClassWeight& c : kClasses) weights.push_back(c.weight);
-  std::discrete_distribution<int> pick_class(weights.begin(), weights.end());
-
-  std::uint32_t next_id = 0;
-  const double length = scenario.road.length();
-  for (double s = spacing(rng) / 2; s < length - 5.0; s += spacing(rng)) {
-    const Pose2 centre = scenario.road.at(s);
-    bool any = false;
-    for (int lane = 0; lane < config.lanes; ++lane) {
-      const bool last_chance = lane == config.lanes - 1 && !any;
-      if (!last_chance && unit(rng) >= config.marking_probability) continue;
-      any = true;
-      const double left = lane * config.lane_width_m;  // lanes to the left of the car's
-      Marking m;
-      m.id = next_id++;
-      m.label = static_cast<Label>(pick_class(rng));
-      m.x = centre.x - std::sin(centre.yaw) * left;
-      m.y = centre.y + std::cos(centre.yaw) * left;
-      m.heading = centre.yaw;
-      m.lane = lane;
-      scenario.markings.push_back(m);
+// A closed tour through street corners, with every corner rounded. Returns
+// the arc length where each street's straight part starts (after the
+// corner) and a key naming that street, so markings can be laid per street.
+struct StreetStart {
+  double s;
+  std::uint64_t street_key;
+};
+Path rounded_tour(const std::vector<std::array<double, 2>>& corners, double radius,
+                  std::vector<StreetStart>& streets) {
+  Path p;
+  const std::size_t n = corners.size();
+  // Start in the middle of the first street so the tour closes on a straight.
+  const auto& c0 = corners[0];
+  const auto& c1 = corners[1];
+  std::array<double, 2> last = {(c0[0] + c1[0]) / 2, (c0[1] + c1[1]) / 2};
+  p.add_point(last[0], last[1]);
+  for (std::size_t k = 1; k <= n; ++k) {
+    const auto& prev = corners[k - 1];
+    const auto& here = corners[k % n];
+    const auto& next = corners[(k + 1) % n];
+    const double in_x = here[0] - prev[0], in_y = here[1] - prev[1];
+    const double out_x = next[0] - here[0], out_y = next[1] - here[1];
+    const double in_len = std::hypot(in_x, in_y), out_len = std::hypot(out_x, out_y);
+    const double ux = in_x / in_len, uy = in_y / in_len, vx = out_x / out_len, vy = out_y / out_len;
+    const double turn = std::atan2(ux * vy - uy * vx, ux * vx + uy * vy);
+    const double cut = std::abs(turn) < 1e-6 ? 0.0 : radius * std::tan(std::abs(turn) / 2);
+    add_line(p, last[0], last[1], here[0] - ux * cut, here[1] - uy * cut);
+    last = {here[0] + vx * cut, here[1] + vy * cut};
+    if (cut > 0) {
+      const double side = turn > 0 ? 1.0 : -1.0;  // left turn: centre on the left
+      const double cx = here[0] - ux * cut - uy * radius * side;
+      const double cy = here[1] - uy * cut + ux * radius * side;
+      const double start = std::atan2((here[1] - uy * cut) - cy, (here[0] - ux * cut) - cx);
+      add_arc(p, cx, cy, radius, start, start + turn);
+    }
+    // The street from `here` to `next`, named by its two ends (direction matters).
+    const auto q = [](double v) { return static_cast<std::uint64_t>(std::llround(v + 1e6)); };
+    streets.push_back({p.length(), mix(q(here[0]) * 31 + q(here[1]) * 17 + q(next[0]) * 7 + q(next[1]))});
+    if (k == n) {
+      streets.pop_back();
+      add_line(p, last[0], last[1], (c0[0] + c1[0]) / 2, (c0[1] + c1[1]) / 2);
     }
   }
+  return p;
+}
+
+struct RowSegment {
+  double begin_s;
+  double end_s;
+  std::uint64_t seed;  // the row layout of this stretch
+};
+
+// Lays road surface, lane lines and marking rows along one lap of
+// scenario.road, skipping stretches that revisit an earlier one.
+void lay_world(Scenario& scenario, const WorldConfig& config,
+               const std::array<double, kClassCount>& weights,
+               const std::vector<RowSegment>& segments) {
+  const Path& road = scenario.road;
+  const double length = road.length();
+  const double w = config.lane_width_m;
+  const int lanes = std::max(1, config.lanes);
+
+  // 1. Which metre of the route is new road, which revisits an earlier one.
+  constexpr double kStep = 1.0;
+  constexpr double kMinGap = 30.0;  // closer along the route is the same pass
+  const auto samples = static_cast<std::size_t>(length / kStep) + 1;
+  std::vector<std::uint8_t> revisit(samples, 0);
+  {
+    const double cell = std::max(config.revisit_radius_m, 1.0);
+    std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
+    std::vector<Pose2> poses(samples);
+    const auto key = [](std::int64_t cx, std::int64_t cy) { return cx * 73856093LL ^ cy * 19349663LL; };
+    for (std::size_t i = 0; i < samples; ++i) {
+      const Pose2 p = road.at(static_cast<double>(i) * kStep);
+      poses[i] = p;
+      const auto cx = static_cast<std::int64_t>(std::floor(p.x / cell));
+      const auto cy = static_cast<std::int64_t>(std::floor(p.y / cell));
+      for (std::int64_t dx = -1; dx <= 1 && !revisit[i]; ++dx)
+        for (std::int64_t dy = -1; dy <= 1 && !revisit[i]; ++dy) {
+          const auto it = grid.find(key(cx + dx, cy + dy));
+          if (it == grid.end()) continue;
+          for (const std::uint32_t j : it->second) {
+            if (static_cast<double>(i - j) * kStep < kMinGap) continue;
+            const Pose2& q = poses[j];
+            if (std::hypot(p.x - q.x, p.y - q.y) < config.revisit_radius_m &&
+                std::cos(wrap_angle(p.yaw - q.yaw)) > std::cos(kPi / 4)) {
+              revisit[i] = 1;
+              break;
+            }
+          }
+        }
+      grid[key(cx, cy)].push_back(static_cast<std::uint32_t>(i));
+    }
+  }
+  const auto is_new = [&](double s) {
+    const auto i = static_cast<std::size_t>(std::clamp(s / kStep, 0.0, double(samples - 1)) + 0.5);
+    return revisit[std::min(i, samples - 1)] == 0;
+  };
+
+  // 2. Road surface and lines, a metre at a time.
+  const auto strip_at = [&](const Pose2& p, double left, double half_length, double half_width,
+                            StripKind kind) {
+    scenario.strips.push_back({p.x - std::sin(p.yaw) * left, p.y + std::cos(p.yaw) * left, p.yaw,
+                               static_cast<float>(half_length), static_cast<float>(half_width),
+                               kind});
+  };
+  constexpr double kLineHalfWidth = 0.075;
+  constexpr double kDashPeriod = 12.0, kDashLength = 3.0;  // US practice: 3 m line, 9 m gap
+  for (std::size_t i = 0; i + 1 < samples; ++i) {
+    if (revisit[i]) continue;
+    const double s = (static_cast<double>(i) + 0.5) * kStep;
+    const Pose2 p = road.at(s);
+    const double half = kStep / 2 + 0.05;  // overlap: no seams on curves
+    // Road surface in 2 m pieces (fewer, larger boxes to draw).
+    if (i % 2 == 0 && (i + 1 >= samples || !revisit[i + 1]))
+      strip_at(road.at(s + kStep / 2), (lanes - 1) * w / 2, kStep + 0.05, lanes * w / 2 + 0.6,
+               StripKind::kRoad);
+    else if (i % 2 == 0 || (i > 0 && revisit[i - 1]))
+      strip_at(p, (lanes - 1) * w / 2, half, lanes * w / 2 + 0.6, StripKind::kRoad);
+    strip_at(p, -w / 2 + 0.1, half, kLineHalfWidth, StripKind::kWhiteLine);        // edge
+    strip_at(p, (lanes - 0.5) * w - 0.1, half, kLineHalfWidth, StripKind::kYellowLine);  // centre
+    if (std::fmod(s, kDashPeriod) < kDashLength)
+      for (int k = 0; k + 1 < lanes; ++k)
+        strip_at(p, (k + 0.5) * w, half - 0.05, kLineHalfWidth, StripKind::kWhiteLine);
+  }
+
+  // 3. Marking rows. Each segment draws its rows from its own generator, so
+  // segments with the same seed look the same (repeated city blocks).
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::discrete_distribution<int> pick_class(weights.begin(), weights.end());
+  const Label stopline = *perception::marking_class_from_name("stopline");
+  const Label crosswalk = *perception::marking_class_from_name("crosswalk");
+  std::uint32_t next_id = 0;
+  for (const RowSegment& segment : segments) {
+    std::mt19937_64 rng(segment.seed);
+    std::uniform_real_distribution<double> spacing(config.row_spacing_min_m,
+                                                   config.row_spacing_max_m);
+    const double end = std::min(segment.end_s, length - 5.0);
+    for (double s = segment.begin_s + spacing(rng) / 2; s < end; s += spacing(rng)) {
+      const Pose2 centre = road.at(s);
+      const bool lay = is_new(s);
+      bool any = false;
+      for (int lane = 0; lane < lanes; ++lane) {
+        const bool last_chance = lane == lanes - 1 && !any;
+        if (!last_chance && unit(rng) >= config.marking_probability) continue;
+        any = true;
+        const auto label = static_cast<Label>(pick_class(rng));
+        if (!lay) continue;
+        // A crosswalk spans the whole road: it takes the row.
+        const double left = label == crosswalk ? (lanes - 1) * w / 2 : lane * w;
+        Marking m;
+        m.id = next_id++;
+        m.label = label;
+        m.x = centre.x - std::sin(centre.yaw) * left;
+        m.y = centre.y + std::cos(centre.yaw) * left;
+        m.heading = centre.yaw;
+        m.lane = label == crosswalk ? 0 : lane;
+        const auto size = marking_size(label, w, lanes);
+        m.length_m = size[0];
+        m.width_m = size[1];
+        scenario.markings.push_back(m);
+        if (label == crosswalk) break;
+        (void)stopline;
+      }
+    }
+  }
+}
+
+std::array<double, kClassCount> weights_for(const WorldConfig& config,
+                                           const std::array<double, kClassCount>& fallback) {
+  return config.class_weights ? *config.class_weights : fallback;
 }
 
 }  // namespace
@@ -89,10 +240,74 @@ void lay_markings(Scenario& scenario, std::mt19937_64& rng, const WorldConfig& c
 const std::vector<std::string>& marking_class_names() {
   static const std::vector<std::string> names = [] {
     std::vector<std::string> n;
-    for (const ClassWeight& c : kClasses) n.emplace_back(c.name);
+    for (const std::string_view c : perception::kMarkingClassNames) n.emplace_back(c);
     return n;
   }();
   return names;
+}
+
+std::array<double, 2> marking_size(Label label, double lane_width_m, int lanes) {
+  // Length along the lane x width across, metres (US MUTCD / EU practice:
+  // arrows 5-7.5 m, letters 2.4 m tall, stop lines 0.3-0.6 m wide).
+  switch (label) {
+    case 0: return {6.0, 0.9};   // forward
+    case 1: return {6.0, 1.5};   // leftturn
+    case 2: return {6.0, 1.5};   // rightturn
+    case 3: return {6.5, 1.8};   // forward&left
+    case 4: return {6.5, 1.8};   // forward&right
+    case 5: return {2.4, 2.8};   // STOP
+    case 6: return {2.4, 2.2};   // PED
+    case 7: return {2.4, 2.8};   // XING
+    case 8: return {3.0, 1.4};   // bicycle
+    case 9: return {2.4, 2.6};   // RXR
+    case 10: case 11: case 12: return {2.4, 1.6};  // 25 35 40
+    case 13: return {6.0, 1.0};  // diamond
+    case 14: return {0.45, lane_width_m - 0.3};     // stop line
+    case 15: return {3.0, lanes * lane_width_m - 0.4};  // crosswalk
+    default: return {1.0, 1.0};
+  }
+}
+
+std::array<double, kClassCount> default_class_weights() {
+  std::array<double, kClassCount> w = kLegacyWeights;
+  w[14] = 0.06;  // stop line
+  w[15] = 0.04;  // crosswalk
+  return w;
+}
+
+bool parse_class_weights(std::string_view text, std::array<double, kClassCount>& weights,
+                         std::string& error) {
+  weights.fill(0.0);
+  double total = 0.0;
+  while (!text.empty()) {
+    const std::size_t comma = text.find(',');
+    const std::string_view item = text.substr(0, comma);
+    text = comma == std::string_view::npos ? std::string_view() : text.substr(comma + 1);
+    const std::size_t eq = item.find('=');
+    if (eq == std::string_view::npos) {
+      error = "'" + std::string(item) + "': expected NAME=WEIGHT";
+      return false;
+    }
+    const auto label = perception::marking_class_from_name(item.substr(0, eq));
+    if (!label) {
+      error = "unknown marking class '" + std::string(item.substr(0, eq)) + "'";
+      return false;
+    }
+    const std::string number(item.substr(eq + 1));
+    char* end = nullptr;
+    const double value = std::strtod(number.c_str(), &end);
+    if (number.empty() || *end != '\0' || !std::isfinite(value) || value < 0) {
+      error = "'" + std::string(item) + "': weight must be a number >= 0";
+      return false;
+    }
+    weights[*label] = value;
+    total += value;
+  }
+  if (total <= 0) {
+    error = "class weights must not all be zero";
+    return false;
+  }
+  return true;
 }
 
 void Path::add_point(double x, double y) {
@@ -121,12 +336,48 @@ Pose2 Path::at(double s) const {
   return {xs_[i] + f * dx, ys_[i] + f * dy, std::atan2(dy, dx)};
 }
 
-std::vector<std::string> scenario_names() { return {"loop", "ring", "figure8", "long"}; }
+std::vector<std::string> scenario_names() {
+  return {"loop", "ring", "figure8", "long", "grid", "two-days"};
+}
+
+namespace {
+
+// City streets on a grid of identical 120 m x 80 m blocks, toured so that
+// several streets are driven two or three times in the same direction.
+Path city_tour(std::vector<StreetStart>& streets) {
+  constexpr double bx = 120.0, by = 80.0;
+  std::vector<std::array<double, 2>> corners;
+  const auto go = [&](double i, double j) { corners.push_back({i * bx, j * by}); };
+  // Outer 3x2 rectangle, then two loops through the inner north-south streets.
+  go(0, 0); go(3, 0); go(3, 2); go(0, 2);
+  go(0, 0); go(1, 0); go(1, 2); go(0, 2);
+  go(0, 0); go(2, 0); go(2, 2); go(0, 2);
+  return rounded_tour(corners, 12.0, streets);
+}
+
+// One row layout per street, chosen among two per street direction: most
+// blocks look exactly like another block (the hard case for false loops).
+std::vector<RowSegment> street_segments(const std::vector<StreetStart>& streets, double length,
+                                        std::uint64_t seed) {
+  std::vector<RowSegment> segments;
+  // The tour starts half way along its last street.
+  segments.push_back({0.0, streets.front().s, mix(seed * 4 + streets.back().street_key % 2)});
+  for (std::size_t i = 0; i < streets.size(); ++i) {
+    const double end = i + 1 < streets.size() ? streets[i + 1].s : length;
+    const std::uint64_t pattern = streets[i].street_key % 2;
+    segments.push_back({streets[i].s, end, mix(seed * 4 + pattern)});
+  }
+  return segments;
+}
+
+}  // namespace
 
 std::optional<Scenario> make_scenario(std::string_view name, std::uint64_t seed,
                                       const WorldConfig& config) {
   Scenario s;
   s.name = std::string(name);
+  std::vector<RowSegment> segments;
+  std::array<double, kClassCount> weights = weights_for(config, kLegacyWeights);
   if (name == "loop") {
     s.description = "a 1.2 km city block driven twice";
     s.road = rounded_rectangle(400, 200, 20);
@@ -144,11 +395,40 @@ std::optional<Scenario> make_scenario(std::string_view name, std::uint64_t seed,
     s.description = "a 6 km block driven ten times (60 km)";
     s.road = rounded_rectangle(2000, 1000, 30);
     s.laps = 10;
+  } else if (name == "grid" || name == "two-days") {
+    std::vector<StreetStart> streets;
+    s.road = city_tour(streets);
+    segments = street_segments(streets, s.road.length(), seed);
+    weights = weights_for(config, default_class_weights());
+    if (name == "grid") {
+      s.description = "a 2.3 km tour of look-alike city blocks, streets driven up to 3 times";
+    } else {
+      s.description = "the city tour driven on two days (day, then dusk in the wet)";
+      s.laps = 2;
+      s.days = 2;
+    }
   } else {
     return std::nullopt;
   }
-  std::mt19937_64 rng(seed);
-  lay_markings(s, rng, config);
+  if (segments.empty()) segments.push_back({0.0, s.road.length(), seed});
+  WorldConfig laid = config;
+  if (name == "grid" || name == "two-days") {
+    // City streets: markings at every few tens of metres.
+    laid.row_spacing_min_m = config.row_spacing_min_m * 0.6;
+    laid.row_spacing_max_m = config.row_spacing_max_m * 0.5;
+  }
+  lay_world(s, laid, weights, segments);
+  return s;
+}
+
+Scenario make_route_scenario(std::string name, Path route, std::uint64_t seed,
+                             const WorldConfig& config) {
+  Scenario s;
+  s.name = std::move(name);
+  s.description = "a route from a pose file";
+  s.road = std::move(route);
+  lay_world(s, config, weights_for(config, default_class_weights()),
+            {{0.0, s.road.length(), seed}});
   return s;
 }
 

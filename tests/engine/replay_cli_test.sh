@@ -38,7 +38,7 @@ check "empty input (engine)" 0 "^matches: 0" -- "$replay" --markings "$work/empt
 check "empty input (compat)" 0 "0 matches" -- "$replay" --markings "$work/empty.txt" --compat --out "$work/empty-matches.txt"
 [ ! -s "$work/empty-matches.txt" ] || { echo "FAIL compat wrote matches for empty input"; failures=$((failures + 1)); }
 
-check "simulated drive" 0 "1.2 km city block" -- "$sim" drive --scenario loop --seed 2 --out "$work/drive"
+check "simulated drive" 0 "1.2 km city block" -- "$sim" drive --scenario loop --seed 2 --no-render --out "$work/drive"
 check "replay of the drive" 0 "precision 100.0%" -- "$replay" --markings "$work/drive/markings.txt" \
   --poses "$work/drive/poses.txt" --truth "$work/drive/frames.csv" \
   --out "$work/matches.txt" --jsonl "$work/matches.jsonl"
