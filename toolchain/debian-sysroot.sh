@@ -44,7 +44,7 @@ for tool in apt-get dpkg-deb; do command -v "$tool" >/dev/null || die "$tool not
 
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
-stamp="$arch deps=$with_deps ${packages[*]}"
+stamp="$arch deps=$with_deps ${packages[*]} (alternatives linked)"
 if [ -f "$out/.packages" ] && [ "$(cat "$out/.packages")" = "$stamp" ]; then
   log "$out is up to date"
   exit 0
@@ -93,6 +93,14 @@ done
 find "$out" -type l -lname '/*' -print0 | while IFS= read -r -d '' link; do
   target=$(readlink "$link")
   ln -sfn "$(realpath -m --relative-to="$(dirname "$link")" "$out$target")" "$link"
+done
+# Maintainer scripts do not run, so the update-alternatives links that
+# libblas3/liblapack3 (OpenCV's BLAS/LAPACK) make in postinst are missing:
+# link each library in a multiarch alternatives directory into its parent.
+for lib in "$out"/usr/lib/*-linux-gnu*/{blas,lapack,openblas*,atlas}/lib*.so*; do
+  [ -e "$lib" ] || continue
+  parent=$(dirname "$(dirname "$lib")")
+  [ -e "$parent/$(basename "$lib")" ] || ln -s "$(basename "$(dirname "$lib")")/$(basename "$lib")" "$parent/$(basename "$lib")"
 done
 rm -f "$state/cache/archives"/*.deb
 echo "$stamp" >"$out/.packages"

@@ -44,7 +44,8 @@
 #                    linked in read-only, so aarch64 binaries find their
 #                    loader and libraries in Debian's multiarch directories
 #                    (the :arm64 packages). Host (x86) programs cannot run
-#                    there: commands use busybox applets and aarch64 binaries.
+#                    there: commands run under the guest's dash, with its
+#                    busybox, can-utils and iproute2 first on PATH.
 #   --prepare-only   download/cache the kernel and exit
 set -euo pipefail
 
@@ -76,6 +77,7 @@ while [ $# -gt 0 ]; do
     --with-vivid) with_vivid=1; shift ;;
     --arch) arch=$2; shift 2 ;;
     --prepare-only) prepare_only=1; shift ;;
+    -h|--help) sed -n '2,/^set -euo/{/^set -euo/d;s/^# \{0,1\}//;p}' "$0"; exit 0 ;;
     --) shift; commands+=("$@"); break ;;
     -*) die "unknown option $1" ;;
     *) commands+=("$1"); shift ;;

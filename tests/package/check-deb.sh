@@ -19,9 +19,9 @@ die() { echo "check-deb: FAILED: $*" >&2; exit 1; }
 build=$(cd "$1" && pwd) || { echo "check-deb: $1: no such build directory" >&2; exit 2; }
 [ -f "$build/CPackConfig.cmake" ] || { echo "check-deb: $build/CPackConfig.cmake missing: configure the build first" >&2; exit 2; }
 
-processor=$(sed -n 's/^CMAKE_SYSTEM_PROCESSOR:[A-Z]*=//p' "$build/CMakeCache.txt" | head -n1)
-[ -n "$processor" ] || processor=$(awk -F= '/^CMAKE_HOST_SYSTEM_PROCESSOR/{print $2}' "$build/CMakeFiles"/*/CMakeSystem.cmake 2>/dev/null | head -n1)
-processor=$(grep -h 'set(CMAKE_SYSTEM_PROCESSOR ' "$build"/CMakeFiles/*/CMakeSystem.cmake | head -n1 | sed 's/.*"\(.*\)".*/\1/')
+# The target processor as CMake recorded it (CMakeSystem.cmake).
+processor=$(grep -h 'set(CMAKE_SYSTEM_PROCESSOR ' "$build"/CMakeFiles/*/CMakeSystem.cmake 2>/dev/null |
+  head -n1 | sed 's/.*"\(.*\)".*/\1/')
 case "$processor" in
   aarch64) deb_arch=arm64 machine=AArch64 ;;
   arm*) deb_arch=armhf machine=ARM ;;

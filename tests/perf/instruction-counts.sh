@@ -22,7 +22,7 @@ while [ $# -gt 0 ]; do
     --aarch64) aarch64_build=$2; shift 2 ;;
     --few) few=$2; shift 2 ;;
     --many) many=$2; shift 2 ;;
-    -h|--help) sed -n '2,13s/^# \{0,1\}//p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,14s/^# \{0,1\}//p' "$0"; exit 0 ;;
     *) die "unknown argument $1 (see --help)" ;;
   esac
 done
