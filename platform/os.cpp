@@ -12,6 +12,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -165,16 +166,32 @@ std::error_code pin_to_cpu(int cpu) noexcept {
   return r == 0 ? std::error_code{} : make_error(r);
 }
 
-std::error_code resident_bytes(std::size_t& out) noexcept {
+namespace {
+std::error_code read_statm(unsigned long& resident_pages, unsigned long& shared_pages) noexcept {
   int fd = -1;
   if (auto ec = sys_open_mode("/proc/self/statm", O_RDONLY, 0, fd)) return ec;
   const UniqueFd owner(fd);
   std::array<char, 128> text{};
   std::size_t got = 0;
   if (auto ec = read_full(fd, text.data(), text.size() - 1, got)) return ec;
-  unsigned long size_pages = 0, resident_pages = 0;
-  if (std::sscanf(text.data(), "%lu %lu", &size_pages, &resident_pages) != 2) return make_error(EIO);
-  out = resident_pages * static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+  unsigned long size_pages = 0;
+  if (std::sscanf(text.data(), "%lu %lu %lu", &size_pages, &resident_pages, &shared_pages) != 3)
+    return make_error(EIO);
+  return {};
+}
+}  // namespace
+
+std::error_code resident_bytes(std::size_t& out) noexcept {
+  unsigned long resident = 0, shared = 0;
+  if (auto ec = read_statm(resident, shared)) return ec;
+  out = resident * static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+  return {};
+}
+
+std::error_code anonymous_resident_bytes(std::size_t& out) noexcept {
+  unsigned long resident = 0, shared = 0;
+  if (auto ec = read_statm(resident, shared)) return ec;
+  out = (resident - std::min(resident, shared)) * static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
   return {};
 }
 

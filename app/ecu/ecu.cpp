@@ -108,10 +108,17 @@ void Ecu::clear_database() noexcept {
 
 std::span<const perception::Detection> Ecu::on_frame(const cv::Mat& grey, Nanoseconds frame_time,
                                                      SteadyClock::time_point arrival) noexcept {
-  current_frame_time_ = frame_time;
-  current_arrival_ = arrival;
   const auto started = SteadyClock::now();
   const std::span<const perception::Detection> detections = detector_.detect(grey);
+  detect_time_.add(SteadyClock::now() - started);
+  process(detections, frame_time, arrival, started);
+  return detections;
+}
+
+void Ecu::process(std::span<const perception::Detection> detections, Nanoseconds frame_time,
+                  SteadyClock::time_point arrival, SteadyClock::time_point started) noexcept {
+  current_frame_time_ = frame_time;
+  current_arrival_ = arrival;
   const auto detected = SteadyClock::now();
 
   FrameInput input;
@@ -132,7 +139,7 @@ std::span<const perception::Detection> Ecu::on_frame(const cv::Mat& grey, Nanose
       o.label = d.label;
       o.x = static_cast<float>(input.pose.x + c * d.ground_x - s * d.ground_y);
       o.y = static_cast<float>(input.pose.y + s * d.ground_x + c * d.ground_y);
-      observations_.push_back(o);
+      if (!observations_.push_back(o)) ++counters_.detections_rejected;
     }
   } else {
     // Without a pose the markings cannot be placed in the world: detect only,
@@ -149,16 +156,13 @@ std::span<const perception::Detection> Ecu::on_frame(const cv::Mat& grey, Nanose
   const auto finished = SteadyClock::now();
 
   ++counters_.frames_processed;
-  detect_time_.add(detected - started);
   engine_time_.add(finished - detected);
-  const auto total = finished - arrival;
   frame_time_.add(finished - started);
   loop_time_max_ns_ = std::max<std::int64_t>(loop_time_max_ns_, (finished - started).count());
-  if (total > frame_period_) {
+  if (finished - arrival > frame_period_) {
     ++counters_.overruns;
     ++overruns_in_cycle_;
   }
-  return detections;
 }
 
 void Ecu::on_match(const MatchEvent& event) {
@@ -224,15 +228,16 @@ void Ecu::send_status(Nanoseconds now) noexcept {
   status.loop_time_max_ms = double(loop_time_max_ns_) / 1e6;
   status.landmark_count = static_cast<std::uint32_t>(std::min<std::size_t>(db.landmarks, 0xFFFFF));
   status.sequence_count = static_cast<std::uint32_t>(std::min<std::size_t>(db.sequences, 0xFFFFF));
+  // A new cycle starts now: failures while sending these pages count in it.
+  dropped_in_cycle_ = 0;
+  overruns_in_cycle_ = 0;
+  bus_errors_in_cycle_ = 0;
+  loop_time_max_ns_ = 0;
   for (const dbc::StatusPage page : dbc::Status::kPages) {
     status.status_page = page;
     send(to_can(dbc::encode_frame(status, status_sender_)), now);
   }
   ++counters_.status_cycles;
-  dropped_in_cycle_ = 0;
-  overruns_in_cycle_ = 0;
-  bus_errors_in_cycle_ = 0;
-  loop_time_max_ns_ = 0;
 }
 
 void Ecu::finish(Nanoseconds now) noexcept {

@@ -81,6 +81,12 @@ class Ecu final : private MatchSink {
   // Returns this frame's detections (valid until the next call).
   std::span<const perception::Detection> on_frame(const cv::Mat& grey, Nanoseconds frame_time,
                                                   SteadyClock::time_point arrival) noexcept;
+  // The part of on_frame() after the detector, for detections that come from
+  // elsewhere (tests, recorded detections).
+  void on_detections(std::span<const perception::Detection> detections, Nanoseconds frame_time,
+                     SteadyClock::time_point arrival) noexcept {
+    process(detections, frame_time, arrival, SteadyClock::now());
+  }
   // A frame that was not processed (late: the loop overran) or lost.
   void count_dropped_frames(std::uint64_t n) noexcept { counters_.frames_dropped += n; dropped_in_cycle_ += n; }
 
@@ -114,6 +120,8 @@ class Ecu final : private MatchSink {
 
  private:
   void on_match(const MatchEvent& event) override;
+  void process(std::span<const perception::Detection> detections, Nanoseconds frame_time,
+               SteadyClock::time_point arrival, SteadyClock::time_point started) noexcept;
   void send(const can::CanFrame& frame, Nanoseconds stamp) noexcept;
   void handle_command(const can::CanFrame& frame) noexcept;
   void clear_database() noexcept;

@@ -97,6 +97,13 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                  (unsigned long long)odo.bad_counter, (unsigned long long)odo.timeouts,
                  (unsigned long long)c.foreign_frames, db.landmarks, db.sequences,
                  double(rss) / (1024.0 * 1024.0));
+    const perception::DetectorCounters& d = ecu.detector().counters();
+    std::fprintf(stderr,
+                 "markloop: detector %llu parts, %llu lane lines, %llu candidates, %llu rejected, "
+                 "%llu below score, %llu bad frames\n",
+                 (unsigned long long)d.parts, (unsigned long long)d.lane_lines,
+                 (unsigned long long)d.candidates, (unsigned long long)d.rejected,
+                 (unsigned long long)d.low_score, (unsigned long long)d.bad_frames);
   }
   if (options.summary_json.empty()) return;
   std::FILE* out = std::fopen(options.summary_json.c_str(), "w");

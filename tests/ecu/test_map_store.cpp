@@ -1,0 +1,259 @@
+// The map file: round trip, and every kind of damage rejected without a crash.
+#include <catch2/catch_test_macros.hpp>
+#include <catch2/matchers/catch_matchers_string.hpp>
+
+#include <algorithm>
+#include <array>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+#include <vector>
+
+#include "ecu/crc32.hpp"
+#include "ecu/map_store.hpp"
+#include "engine/sequence_database.hpp"
+
+using namespace markloop;
+using Catch::Matchers::ContainsSubstring;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr unsigned kK = 4;
+
+DatabaseConfig small_capacity() {
+  DatabaseConfig c;
+  c.landmark_capacity = 64;
+  c.sequence_capacity = 64;
+  return c;
+}
+
+// A database with `landmarks` landmarks on a line and every run of k as a sequence.
+void fill(SequenceDatabase& db, unsigned landmarks, std::uint32_t seed = 1) {
+  std::mt19937 rng(seed);
+  std::vector<LandmarkId> ids;
+  for (unsigned i = 0; i < landmarks; ++i) {
+    Landmark l;
+    l.label = static_cast<Label>(rng() % 16);
+    l.observations = static_cast<std::uint16_t>(2 + i % 5);
+    l.first_frame = 10 * i;
+    l.last_frame = 10 * i + 3;
+    l.x = static_cast<float>(12.5 * i + static_cast<double>(rng() % 100) * 0.01);
+    l.y = static_cast<float>(static_cast<double>(rng() % 100) * 0.03 - 1.5);
+    l.car_x = l.x - 10.0f;
+    l.car_y = 0.25f;
+    l.car_yaw = 0.01f * static_cast<float>(i);
+    l.has_car_pose = i % 3 != 0;
+    l.t = 1.25 * i;
+    l.station = 12.5 * i;
+    ids.push_back(db.add_landmark(l));
+    if (ids.size() >= kK) REQUIRE(db.add_sequence(std::span<const LandmarkId>(&ids[ids.size() - kK], kK)));
+  }
+}
+
+std::string fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("markloop-map-test-" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir.string();
+}
+
+std::vector<char> read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void write_bytes(const std::string& path, const std::vector<char>& bytes, std::size_t count) {
+  std::ofstream(path, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(count));
+}
+
+std::size_t count_set_aside(const std::string& dir) {
+  std::size_t n = 0;
+  for (const auto& entry : fs::directory_iterator(dir))
+    if (entry.path().filename().string().find(".corrupt-") != std::string::npos) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST_CASE("a saved map loads back with the same landmarks and sequences") {
+  const std::string dir = fresh_dir("roundtrip");
+  const MatchConfig match;
+  SequenceDatabase saved(DatabaseConfig{}, match, kK);
+  fill(saved, 40);
+  ecu::MapStore store(dir + "/map.bin");
+  REQUIRE_FALSE(store.save(saved));
+  CHECK(store.saves() == 1);
+  CHECK_FALSE(fs::exists(dir + "/map.bin.tmp"));
+
+  SequenceDatabase loaded(DatabaseConfig{}, match, kK);
+  const ecu::MapLoadResult result = store.load(loaded, match);
+  REQUIRE(result.outcome == ecu::MapLoadOutcome::kLoaded);
+  CHECK(result.landmarks == 40);
+  CHECK(result.sequences == 37);
+  CHECK(loaded.stats().sequences == 37);
+  // Same landmarks in the same order, moved into the past by more than the separation.
+  const double shift_s = 1.25 * 39 + match.min_separation_s + 1.0;
+  const double shift_m = 12.5 * 39 + match.min_separation_m + 1.0;
+  for (LandmarkId i = 0; i < 40; ++i) {
+    const Landmark& a = *saved.landmark(saved.first_landmark_id() + i);
+    const Landmark& b = *loaded.landmark(loaded.first_landmark_id() + i);
+    CHECK(a.label == b.label);
+    CHECK(a.x == b.x);
+    CHECK(a.y == b.y);
+    CHECK(a.car_yaw == b.car_yaw);
+    CHECK(a.has_car_pose == b.has_car_pose);
+    CHECK(a.last_frame == b.last_frame);
+    CHECK(b.t == a.t - shift_s);
+    CHECK(b.station == a.station - shift_m);
+  }
+  // The loaded index finds a stored sequence by its shape.
+  SequenceShape shape;
+  std::array<LandmarkId, kK> ids{};
+  for (unsigned i = 0; i < kK; ++i) ids[i] = loaded.first_landmark_id() + 10 + i;
+  REQUIRE(loaded.shape_of(ids, shape));
+  bool limited = false;
+  CHECK(loaded.for_each_match(shape, 8, limited, [](auto) { return true; }) >= 1);
+}
+
+TEST_CASE("an empty map and a missing file") {
+  const std::string dir = fresh_dir("empty");
+  const MatchConfig match;
+  SequenceDatabase db(small_capacity(), match, kK);
+  ecu::MapStore store(dir + "/map.bin");
+  CHECK(store.load(db, match).outcome == ecu::MapLoadOutcome::kMissing);
+  REQUIRE_FALSE(store.save(db));
+  const auto result = store.load(db, match);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kLoaded);
+  CHECK(result.landmarks == 0);
+  ecu::MapStore none("");
+  CHECK(none.load(db, match).outcome == ecu::MapLoadOutcome::kMissing);
+  CHECK_FALSE(none.save(db));
+}
+
+TEST_CASE("a map larger than the database keeps its newest part") {
+  const std::string dir = fresh_dir("larger");
+  const MatchConfig match;
+  SequenceDatabase big(DatabaseConfig{}, match, kK);
+  fill(big, 200);
+  ecu::MapStore store(dir + "/map.bin");
+  REQUIRE_FALSE(store.save(big));
+  SequenceDatabase small(small_capacity(), match, kK);
+  const auto result = store.load(small, match);
+  REQUIRE(result.outcome == ecu::MapLoadOutcome::kLoaded);
+  CHECK(result.landmarks == 64);
+  CHECK(small.stats().sequences <= 64);
+}
+
+TEST_CASE("a map truncated at every byte is rejected, set aside, and leaves an empty database") {
+  const std::string dir = fresh_dir("truncated");
+  const MatchConfig match;
+  SequenceDatabase saved(small_capacity(), match, kK);
+  fill(saved, 6);  // 64 + 6*52 + 3*16 = 424 bytes
+  const std::string path = dir + "/map.bin";
+  ecu::MapStore store(path);
+  REQUIRE_FALSE(store.save(saved));
+  const std::vector<char> bytes = read_bytes(path);
+  REQUIRE(bytes.size() == ecu::kMapHeaderBytes + 6 * ecu::kMapLandmarkBytes + 3 * 4 * kK);
+  for (std::size_t length = 0; length < bytes.size(); ++length) {
+    write_bytes(path, bytes, length);
+    SequenceDatabase db(small_capacity(), match, kK);
+    const auto result = store.load(db, match);
+    INFO("length " << length << ": " << result.message);
+    REQUIRE(result.outcome == ecu::MapLoadOutcome::kRejected);
+    REQUIRE_FALSE(result.set_aside_path.empty());
+    REQUIRE_FALSE(fs::exists(path));
+    REQUIRE(db.stats().landmarks == 0);
+    REQUIRE(db.stats().sequences == 0);
+  }
+  CHECK(count_set_aside(dir) >= 1);
+  // Trailing garbage is damage too.
+  std::vector<char> longer = bytes;
+  longer.push_back('x');
+  write_bytes(path, longer, longer.size());
+  SequenceDatabase db(small_capacity(), match, kK);
+  CHECK(store.load(db, match).outcome == ecu::MapLoadOutcome::kRejected);
+}
+
+TEST_CASE("every single flipped bit is detected") {
+  const std::string dir = fresh_dir("flipped");
+  const MatchConfig match;
+  SequenceDatabase saved(small_capacity(), match, kK);
+  fill(saved, 5);
+  const std::string path = dir + "/map.bin";
+  ecu::MapStore store(path);
+  REQUIRE_FALSE(store.save(saved));
+  const std::vector<char> bytes = read_bytes(path);
+  for (std::size_t bit = 0; bit < 8 * bytes.size(); ++bit) {
+    std::vector<char> damaged = bytes;
+    damaged[bit / 8] = static_cast<char>(damaged[bit / 8] ^ (1 << (bit % 8)));
+    write_bytes(path, damaged, damaged.size());
+    SequenceDatabase db(small_capacity(), match, kK);
+    const auto result = store.load(db, match);
+    INFO("bit " << bit << ": " << result.message);
+    REQUIRE(result.outcome == ecu::MapLoadOutcome::kRejected);
+    REQUIRE(db.stats().landmarks == 0);
+  }
+}
+
+TEST_CASE("foreign files, other versions and another k are rejected with the reason") {
+  const std::string dir = fresh_dir("foreign");
+  const std::string path = dir + "/map.bin";
+  const MatchConfig match;
+  ecu::MapStore store(path);
+  SequenceDatabase db(small_capacity(), match, kK);
+
+  std::ofstream(path) << "# markloop.conf\ncamera.device = /dev/video0\n" << std::string(200, '#');
+  auto result = store.load(db, match);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kRejected);
+  CHECK_THAT(result.message, ContainsSubstring("wrong magic"));
+  CHECK(fs::exists(result.set_aside_path));
+
+  // Version 2 with a correct header checksum: the version is what is reported.
+  SequenceDatabase saved(small_capacity(), match, kK);
+  fill(saved, 5);
+  REQUIRE_FALSE(store.save(saved));
+  std::vector<char> bytes = read_bytes(path);
+  bytes[8] = 2;
+  std::array<std::uint8_t, 60> header{};
+  std::copy_n(bytes.begin(), 60, header.begin());
+  const std::uint32_t crc = ecu::crc32(header);
+  for (int i = 0; i < 4; ++i) bytes[60 + i] = static_cast<char>(crc >> (8 * i));
+  write_bytes(path, bytes, bytes.size());
+  result = store.load(db, match);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kRejected);
+  CHECK_THAT(result.message, ContainsSubstring("map version 2"));
+
+  // Made with another k.
+  REQUIRE_FALSE(store.save(saved));
+  SequenceDatabase other_k(small_capacity(), match, 5);
+  result = store.load(other_k, match);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kRejected);
+  CHECK_THAT(result.message, ContainsSubstring("k = 4, this ECU uses k = 5"));
+}
+
+TEST_CASE("a failed save leaves the previous map intact") {
+  const std::string dir = fresh_dir("atomic");
+  const std::string path = dir + "/map.bin";
+  const MatchConfig match;
+  SequenceDatabase first(small_capacity(), match, kK);
+  fill(first, 8);
+  ecu::MapStore store(path);
+  REQUIRE_FALSE(store.save(first));
+  const std::vector<char> before = read_bytes(path);
+
+  // A power cut mid-save leaves a partial temporary file: it is never read.
+  write_bytes(path + ".tmp", before, before.size() / 2);
+  SequenceDatabase db(small_capacity(), match, kK);
+  CHECK(store.load(db, match).outcome == ecu::MapLoadOutcome::kLoaded);
+
+  // The temporary file cannot be created (a directory stands in its way).
+  fs::remove(path + ".tmp");
+  fs::create_directory(path + ".tmp");
+  SequenceDatabase second(small_capacity(), match, kK);
+  fill(second, 20, 7);
+  CHECK(store.save(second));
+  CHECK(store.save_failures() == 1);
+  CHECK(read_bytes(path) == before);
+}

@@ -1,0 +1,88 @@
+// SIGTERM and SIGINT on the real program: the map is saved and the exit is clean.
+#include <catch2/catch_test_macros.hpp>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "drivers/can/candump_log.hpp"
+#include "ecu/map_store.hpp"
+#include "ecu_test_support.hpp"
+#include "io/y4m.hpp"
+#include "perception/camera_model.hpp"
+
+using namespace markloop;
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A 60 s recording (600 blank frames would be 400 MB: 20 frames at 1/3 fps
+// keep the file small while --realtime makes the run last a minute).
+void write_recording(const fs::path& dir) {
+  const auto camera = perception::default_camera_model();
+  io::Y4mWriter video;
+  REQUIRE(video.open((dir / "frames.y4m").string(), camera.width(), camera.height(), 1, 3));
+  std::vector<std::uint8_t> grey(static_cast<std::size_t>(camera.width()) * camera.height(), 90);
+  for (int i = 0; i < 20; ++i) REQUIRE(video.write_frame(grey));
+  REQUIRE(video.close());
+  can::CandumpLogWriter log;
+  REQUIRE_FALSE(log.open((dir / "odometry.log").string().c_str(), "vcan0"));
+  ecu::testing::Gateway gateway;
+  for (int i = 0; i < 3000; ++i) {
+    can::CanFrame frame = gateway.odometry(10.0, 0.0);
+    frame.timestamp_ns = std::max<std::int64_t>(1, std::int64_t{i} * 20'000'000);
+    REQUIRE_FALSE(log.send(frame));
+  }
+  REQUIRE_FALSE(log.close());
+}
+
+int run_and_signal(const fs::path& dir, int signal_number, const fs::path& map) {
+  const pid_t pid = fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    const std::string frames = (dir / "frames.y4m").string(), odometry = (dir / "odometry.log").string();
+    const std::string out = (dir / "out.log").string(), map_path = map.string();
+    execl(MARKLOOP_BINARY, MARKLOOP_BINARY, "--camera-file", frames.c_str(), "--can-in",
+          odometry.c_str(), "--can-out", out.c_str(), "--map", map_path.c_str(), "--realtime",
+          "--quiet", "--set", "realtime.mlockall=false", "--set", "database.landmark_capacity=1024",
+          "--set", "database.sequence_capacity=1024", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  std::this_thread::sleep_for(1500ms);  // started, a few frames in, far from the end
+  REQUIRE(kill(pid, signal_number) == 0);
+  int status = 0;
+  REQUIRE(waitpid(pid, &status, 0) == pid);
+  REQUIRE(WIFEXITED(status));
+  return WEXITSTATUS(status);
+}
+
+}  // namespace
+
+TEST_CASE("SIGTERM and SIGINT save the map and exit 0") {
+  const fs::path dir = fs::temp_directory_path() / "markloop-signal-test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_recording(dir);
+  for (const int signal_number : {SIGTERM, SIGINT}) {
+    INFO("signal " << signal_number);
+    const fs::path map = dir / ("map-" + std::to_string(signal_number) + ".bin");
+    const auto started = std::chrono::steady_clock::now();
+    CHECK(run_and_signal(dir, signal_number, map) == 0);
+    CHECK(std::chrono::steady_clock::now() - started < 10s);  // not the whole minute
+    REQUIRE(fs::exists(map));
+    MatchConfig match;
+    DatabaseConfig capacity;
+    capacity.landmark_capacity = capacity.sequence_capacity = 1024;
+    SequenceDatabase db(capacity, match, 4);
+    ecu::MapStore store(map.string());
+    CHECK(store.load(db, match).outcome == ecu::MapLoadOutcome::kLoaded);
+    CHECK(fs::exists(dir / "out.log"));
+  }
+}
