@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <vector>
@@ -104,11 +105,17 @@ std::optional<Route> load_route(const std::string& path, std::string& error) {
     const Pose2 p = raw.at(s);
     even.push_back({p.x, p.y});
   }
+  if (raw.length() - 0.5 * double(even.size() - 1) > 1e-6) {
+    const Pose2 end = raw.at(raw.length());
+    even.push_back({end.x, end.y});
+  }
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(even.size());
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     double x = 0, y = 0;
     int k = 0;
-    for (std::ptrdiff_t j = std::max<std::ptrdiff_t>(0, i - 2); j <= std::min(n - 1, i + 2); ++j, ++k) {
+    // Symmetric window, narrower at the ends so the ends stay where they are.
+    const std::ptrdiff_t half = std::min<std::ptrdiff_t>({2, i, n - 1 - i});
+    for (std::ptrdiff_t j = i - half; j <= i + half; ++j, ++k) {
       x += even[static_cast<std::size_t>(j)][0];
       y += even[static_cast<std::size_t>(j)][1];
     }

@@ -1,0 +1,84 @@
+#include <catch2/catch_test_macros.hpp>
+#include <catch2/matchers/catch_matchers_floating_point.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <string>
+
+#include "sim/route.hpp"
+
+using namespace markloop::sim;
+using Catch::Matchers::WithinAbs;
+
+namespace {
+std::string write(const std::string& name, const std::string& text) {
+  const auto dir = std::filesystem::temp_directory_path() / "markloop-sim-route-tests";
+  std::filesystem::create_directories(dir);
+  const auto path = (dir / name).string();
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string kitti_line(double forward, double right) {
+  return "1 0 0 " + std::to_string(right) + " 0 1 0 0 0 0 1 " + std::to_string(forward) + "\n";
+}
+}  // namespace
+
+TEST_CASE("KITTI routes: the ground is the camera's x-z plane, 10 Hz") {
+  std::string text;
+  for (int i = 0; i <= 100; ++i) text += kitti_line(i * 1.0, 0.0);  // 100 m straight ahead
+  const auto path = write("straight.txt", text);
+  std::string error;
+  const auto route = load_route(path, error);
+  REQUIRE(route);
+  CHECK(route->format == RouteFormat::kKitti);
+  CHECK(route->poses == 101);
+  CHECK_THAT(route->path.length(), WithinAbs(100.0, 0.6));
+  CHECK_THAT(route->average_speed_mps(), WithinAbs(10.0, 0.1));
+  const auto end = route->path.at(route->path.length());
+  CHECK_THAT(end.x, WithinAbs(100.0, 0.6));  // camera z: ahead
+  CHECK_THAT(end.y, WithinAbs(0.0, 1e-6));
+  CHECK_THAT(end.yaw, WithinAbs(0.0, 1e-6));
+
+  // Camera x is to the right: a route drifting right goes to negative y.
+  std::string right;
+  for (int i = 0; i <= 100; ++i) right += kitti_line(i * 1.0, i * 0.2);
+  const auto r = load_route(write("right.txt", right), error);
+  REQUIRE(r);
+  CHECK(r->path.at(r->path.length()).y < -15.0);
+}
+
+TEST_CASE("TUM routes: x-y ground, speed from the time stamps") {
+  std::string text = "# timestamp tx ty tz qx qy qz qw\n";
+  for (int i = 0; i <= 50; ++i)
+    text += std::to_string(100.0 + i * 0.5) + " 0 " + std::to_string(i * 2.0) + " 0 0 0 0 1\n";
+  std::string error;
+  const auto route = load_route(write("tum.txt", text), error);
+  REQUIRE(route);
+  CHECK(route->format == RouteFormat::kTum);
+  CHECK_THAT(route->path.length(), WithinAbs(100.0, 0.6));
+  CHECK_THAT(route->average_speed_mps(), WithinAbs(4.0, 0.05));
+  CHECK_THAT(route->path.at(50.0).yaw, WithinAbs(std::numbers::pi / 2, 1e-6));
+}
+
+TEST_CASE("bad route files are refused with FILE:LINE and the reason") {
+  std::string error;
+  const auto expect = [&](const std::string& name, const std::string& text, const std::string& what) {
+    const auto path = write(name, text);
+    CHECK_FALSE(load_route(path, error));
+    INFO(error);
+    CHECK(error.find(path + what) == 0);
+  };
+  expect("nan.txt", kitti_line(0, 0) + "1 0 0 x 0 1 0 0 0 0 1 2\n", ":2: 'x' is not a number");
+  expect("count.txt", "# comment\n\n1 2 3 4 5\n", ":3: expected 12 numbers (KITTI 3x4 pose) or 8");
+  expect("mixed.txt", kitti_line(0, 0) + kitti_line(1, 0) + "1 2 3 4 5 6 7 8\n",
+         ":3: expected 12 numbers like the first pose (KITTI), found 8");
+  expect("time.txt", "1 0 0 0 0 0 0 1\n2 1 0 0 0 0 0 1\n2 2 0 0 0 0 0 1\n",
+         ":3: timestamp 2.000000 does not increase");
+  expect("one.txt", kitti_line(0, 0), ": a route needs at least 2 poses, found 1");
+  expect("short.txt", kitti_line(0, 0) + kitti_line(1, 0), ": the route is only");
+  CHECK_FALSE(load_route("/nonexistent/route.txt", error));
+  CHECK(error == "/nonexistent/route.txt: cannot open the route file");
+}

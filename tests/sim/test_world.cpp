@@ -1,0 +1,143 @@
+#include <catch2/catch_test_macros.hpp>
+
+#include <cmath>
+#include <numbers>
+#include <set>
+#include <string>
+
+#include "sim/drive.hpp"
+#include "sim/world.hpp"
+
+using namespace markloop;
+using namespace markloop::sim;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// A 200 m circle driven `laps` times, weaving 0.3 m so no pass retraces
+// another exactly (as real recorded routes do).
+Path circle_route(double laps) {
+  Path p;
+  const double r = 100.0;
+  const int steps = static_cast<int>(laps * 2 * kPi * r / 0.5);
+  for (int i = 0; i <= steps; ++i) {
+    const double a = -kPi / 2 + i * 0.5 / r;
+    const double rr = r + 0.3 * std::sin(i * 0.5 / 23.0);
+    p.add_point(rr * std::cos(a), 100.0 + rr * std::sin(a));
+  }
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("a road driven again gets no second set of markings") {
+  const Path route = circle_route(1.6);
+  const double lap = 2 * kPi * 100.0;
+  const Scenario world = make_route_scenario("circle", route, 7);
+  REQUIRE(world.markings.size() > 10);
+  // Markings are laid only along the first lap.
+  for (const Marking& m : world.markings) {
+    for (const Marking& other : world.markings)
+      if (other.id != m.id) CHECK(std::hypot(other.x - m.x, other.y - m.y) > 1.0);
+  }
+  // The same world laid along one lap only has the same markings.
+  const Scenario one_lap = make_route_scenario("circle", circle_route(1.0), 7);
+  CHECK(one_lap.markings.size() <= world.markings.size());
+  CHECK(world.markings.size() <= one_lap.markings.size() + 1);
+
+  // Driving it: what the car passes on the second lap is what it passed on
+  // the first.
+  DriveConfig config;
+  config.detection_probability = 1.0;
+  config.false_positives_per_frame = 0.0;
+  Drive drive(world, config, 3);
+  std::set<std::uint32_t> first, second;
+  DriveFrame frame;
+  while (drive.next(frame)) {
+    const double s = frame.estimate.t * config.speed_mps;
+    for (const std::uint32_t id : frame.observed_marking_ids) {
+      if (s < lap - 30) first.insert(id);
+      if (s > lap + 30) second.insert(id);
+    }
+  }
+  REQUIRE(second.size() >= 5);
+  for (const std::uint32_t id : second) CHECK(first.count(id) == 1);
+}
+
+TEST_CASE("the world's roads are laid once per road too") {
+  const Scenario world = make_route_scenario("circle", circle_route(1.6), 7);
+  const Scenario one_lap = make_route_scenario("circle", circle_route(1.0), 7);
+  // Strips of 1 to 2 m: the extra 0.6 lap adds none beyond the closing seam.
+  CHECK(world.strips.size() <= one_lap.strips.size() + 20);
+}
+
+TEST_CASE("built-in scenarios lay markings of the classifier's classes") {
+  for (const std::string& name : scenario_names()) {
+    const auto s = make_scenario(name, 2);
+    REQUIRE(s);
+    CHECK(s->markings.size() > 10);
+    CHECK(!s->strips.empty());
+    for (const Marking& m : s->markings) {
+      REQUIRE(m.label < kClassCount);
+      CHECK(m.length_m > 0.2);
+      CHECK(m.width_m > 0.5);
+    }
+  }
+  CHECK_FALSE(make_scenario("nowhere", 1));
+}
+
+TEST_CASE("the same seed gives the same world, another seed another") {
+  const auto a = make_scenario("grid", 5), b = make_scenario("grid", 5), c = make_scenario("grid", 6);
+  REQUIRE(a->markings.size() == b->markings.size());
+  for (std::size_t i = 0; i < a->markings.size(); ++i) {
+    CHECK(a->markings[i].label == b->markings[i].label);
+    CHECK(a->markings[i].x == b->markings[i].x);
+  }
+  bool differs = a->markings.size() != c->markings.size();
+  for (std::size_t i = 0; !differs && i < a->markings.size(); ++i)
+    differs = a->markings[i].label != c->markings[i].label || a->markings[i].x != c->markings[i].x;
+  CHECK(differs);
+}
+
+TEST_CASE("the city grid repeats its blocks' layouts") {
+  // Identical-looking blocks are the hard case for false loops: several
+  // stretches of street carry the same sequence of classes.
+  const auto grid = make_scenario("grid", 1);
+  std::set<std::string> triples;
+  int repeats = 0;
+  for (std::size_t i = 0; i + 2 < grid->markings.size(); ++i) {
+    const std::string key = std::to_string(grid->markings[i].label) + "," +
+                            std::to_string(grid->markings[i + 1].label) + "," +
+                            std::to_string(grid->markings[i + 2].label);
+    if (!triples.insert(key).second) ++repeats;
+  }
+  CHECK(repeats >= 5);
+}
+
+TEST_CASE("class weights choose the classes laid") {
+  std::array<double, kClassCount> weights{};
+  std::string error;
+  REQUIRE(parse_class_weights("stop=1,diamond=3", weights, error));
+  WorldConfig config;
+  config.class_weights = weights;
+  const auto s = make_scenario("ring", 1, config);
+  int stops = 0, diamonds = 0;
+  for (const Marking& m : s->markings) {
+    REQUIRE((marking_class_names()[m.label] == "stop" || marking_class_names()[m.label] == "diamond"));
+    (marking_class_names()[m.label] == "stop" ? stops : diamonds)++;
+  }
+  CHECK(diamonds > stops);
+
+  CHECK_FALSE(parse_class_weights("stop", weights, error));
+  CHECK(error.find("NAME=WEIGHT") != std::string::npos);
+  CHECK_FALSE(parse_class_weights("zebra=1", weights, error));
+  CHECK(error.find("unknown marking class 'zebra'") != std::string::npos);
+  CHECK_FALSE(parse_class_weights("stop=-1", weights, error));
+  CHECK_FALSE(parse_class_weights("stop=0", weights, error));
+}
+
+TEST_CASE("legacy scenarios keep their marking mix (no stop lines or crosswalks)") {
+  const auto s = make_scenario("ring", 3);
+  for (const Marking& m : s->markings) CHECK(m.label < 14);
+}
