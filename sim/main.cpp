@@ -9,6 +9,7 @@
 
 #include "cli/cli.hpp"
 #include "perception/camera_model.hpp"
+#include "sim/live.hpp"
 #include "sim/recorder.hpp"
 #include "sim/route.hpp"
 #include "sim/world.hpp"
@@ -21,6 +22,7 @@ using namespace markloop::cli;
 
 constexpr const char* kUsage = R"(usage: markloop-sim drive (--scenario NAME | --route FILE) --out DIR [options]
        markloop-sim training-set --out DIR [--seed N] [--frames N] [--camera FILE]
+       markloop-sim live --from DIR --video DEVICE [--can IF] [options]
        markloop-sim list
 
 drive: simulate a drive and write, into DIR,
@@ -68,6 +70,19 @@ training-set: images/NNNNNN.png and annotations.csv (image,label,x1,y1,...,
   (default 200) of a world of its own, every class equally often, random
   light, wear, noise and vehicles; seeds are the given seed + 2^32, so never
   a drive's.
+
+live: play a recorded drive (DIR from "drive": frames.y4m, odometry.log) in
+  real time into devices, for hardware-in-the-loop tests: every frame into a
+  V4L2 output node at the drive's frame rate (vivid's output, looped back to
+  its capture node for the ECU) and the odometry onto a CAN interface, each
+  at its absolute deadline since the start.
+  --from DIR        the recorded drive; required
+  --video DEVICE    V4L2 output device, e.g. /dev/video1; required
+  --output N        VIDIOC_S_OUTPUT index (default: keep the current one)
+  --format F        grey or yuyv (neutral chroma); default grey
+  --can IF          SocketCAN interface for the odometry, e.g. vcan0
+  --max-frames N    stop after N frames
+  Ends at the end of the drive or on SIGINT/SIGTERM and prints its counters.
 )";
 
 perception::CameraModel camera_from(const std::string& path) {
@@ -192,6 +207,46 @@ int training_set(int argc, char** argv) {
   return 0;
 }
 
+int live(int argc, char** argv) {
+  LiveOptions options;
+  for (int i = 2; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
+    const char* value = argv[++i];
+    if (arg == "--from") options.drive_dir = value;
+    else if (arg == "--video") options.video_device = value;
+    else if (arg == "--output") options.video_output = static_cast<int>(parse_whole(arg, value));
+    else if (arg == "--can") options.can_interface = value;
+    else if (arg == "--max-frames") options.max_frames = parse_whole(arg, value);
+    else if (arg == "--format") {
+      const std::string_view f = value;
+      if (f == "grey") options.format = v4l2::PixelFormat::Grey;
+      else if (f == "yuyv") options.format = v4l2::PixelFormat::Yuyv;
+      else fail(std::string("--format: unknown '") + value + "' (grey, yuyv)");
+    } else {
+      fail("unknown option " + std::string(arg) + " (see --help)");
+    }
+  }
+  if (options.drive_dir.empty()) fail("--from DIR is required (see --help)");
+  if (options.video_device.empty()) fail("--video DEVICE is required (see --help)");
+  LiveCounters counters;
+  std::string error;
+  if (!run_live(options, counters, error)) fail(error);
+  std::printf("markloop-sim: live: %llu frames sent (%llu failed), %llu CAN frames sent (%llu failed), "
+              "%llu events late by more than 5 ms, worst %.2f ms%s\n",
+              static_cast<unsigned long long>(counters.frames_sent),
+              static_cast<unsigned long long>(counters.frame_errors),
+              static_cast<unsigned long long>(counters.can_sent),
+              static_cast<unsigned long long>(counters.can_errors),
+              static_cast<unsigned long long>(counters.late_events), counters.max_lateness_ms,
+              counters.interrupted ? " (interrupted)" : "");
+  return counters.frame_errors == 0 && counters.can_errors == 0 ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -199,6 +254,7 @@ int main(int argc, char** argv) {
   const std::string_view command = argc > 1 ? argv[1] : "";
   if (command == "drive") return drive(argc, argv);
   if (command == "training-set") return training_set(argc, argv);
+  if (command == "live") return live(argc, argv);
   if (command == "list") {
     for (const auto& name : scenario_names()) {
       const auto s = make_scenario(name, 1);

@@ -1,0 +1,160 @@
+#include "sim/live.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+#include "drivers/can/candump_log.hpp"
+#include "drivers/can/socketcan.hpp"
+#include "drivers/v4l2/v4l2_output.hpp"
+#include "io/y4m.hpp"
+
+namespace markloop::sim {
+
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+void on_signal(int) { g_stop = 1; }
+
+std::int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+// Sleeps until the absolute CLOCK_MONOTONIC time `deadline_ns`; false when a
+// stop signal arrived first.
+bool sleep_until(std::int64_t deadline_ns) {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
+  while (g_stop == 0) {
+    const int rc = clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+    if (rc == 0) return true;
+    if (rc != EINTR) return false;
+  }
+  return false;
+}
+
+bool load_odometry(const std::string& path, std::vector<can::CanFrame>& frames, std::string& error) {
+  std::ifstream in(path);
+  if (!in) {
+    error = path + ": cannot open";
+    return false;
+  }
+  std::size_t line_number = 0;
+  for (std::string line; std::getline(in, line);) {
+    ++line_number;
+    if (line.empty()) continue;
+    can::CandumpRecord record;
+    can::CandumpLineError line_error;
+    if (!can::parse_candump_line(line, record, line_error)) {
+      error = path + ":" + std::to_string(line_number) + ":" + std::to_string(line_error.column) +
+              ": " + line_error.what;
+      return false;
+    }
+    if (!frames.empty() && record.frame.timestamp_ns < frames.back().timestamp_ns) {
+      error = path + ":" + std::to_string(line_number) + ": time stamps go backwards";
+      return false;
+    }
+    frames.push_back(record.frame);
+  }
+  return true;
+}
+
+}  // namespace
+
+bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& error) {
+  counters = {};
+  const std::filesystem::path dir(options.drive_dir);
+  io::Y4mReader video;
+  if (!video.open((dir / "frames.y4m").string())) {
+    error = video.error();
+    return false;
+  }
+  std::vector<can::CanFrame> odometry;  // all of it, read before the clock starts
+  if (!options.can_interface.empty() &&
+      !load_odometry((dir / "odometry.log").string(), odometry, error))
+    return false;
+
+  const io::Y4mFormat& format = video.format();
+  v4l2::V4l2Output output;
+  v4l2::OutputConfig config;
+  config.device = options.video_device;
+  config.output = options.video_output;
+  config.width = static_cast<std::uint32_t>(format.width);
+  config.height = static_cast<std::uint32_t>(format.height);
+  config.format = options.format;
+  config.fps = static_cast<std::uint32_t>(std::lround(1.0 / format.frame_period_s()));
+  if (const auto ec = output.start(config)) {
+    error = options.video_device + ": cannot start the V4L2 output: " + ec.message();
+    return false;
+  }
+  can::SocketCan bus;
+  if (!options.can_interface.empty()) {
+    if (const auto ec = bus.open(options.can_interface, {})) {
+      error = options.can_interface + ": cannot open: " + ec.message();
+      return false;
+    }
+  }
+
+  struct sigaction action{};
+  action.sa_handler = on_signal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  g_stop = 0;
+
+  std::vector<std::uint8_t> luma(format.luma_bytes());
+  const auto frame_period_ns = static_cast<std::int64_t>(format.frame_period_s() * 1e9);
+  std::size_t frame = 0, next_can = 0;
+  bool frame_ready = video.read_frame(luma) == io::Y4mRead::kFrame;
+  const std::int64_t start = monotonic_ns();
+  std::size_t next_report = 1;
+  const std::size_t limit = options.max_frames;
+  while (g_stop == 0) {
+    const bool frames_left = frame_ready && (limit == 0 || frame < limit);
+    const bool can_left = next_can < odometry.size() &&
+                          (frames_left || odometry[next_can].timestamp_ns <=
+                                              static_cast<std::int64_t>(frame) * frame_period_ns);
+    if (!frames_left && !can_left) break;
+    const std::int64_t frame_due = static_cast<std::int64_t>(frame) * frame_period_ns;
+    const bool send_frame = frames_left && (!can_left || frame_due <= odometry[next_can].timestamp_ns);
+    const std::int64_t due = send_frame ? frame_due : odometry[next_can].timestamp_ns;
+    if (!sleep_until(start + due)) break;
+    const double late_ms = static_cast<double>(monotonic_ns() - start - due) / 1e6;
+    if (late_ms > 5.0) ++counters.late_events;
+    counters.max_lateness_ms = std::max(counters.max_lateness_ms, late_ms);
+    if (send_frame) {
+      if (output.send_luma(luma, std::chrono::milliseconds(50)))
+        ++counters.frame_errors;
+      else
+        ++counters.frames_sent;
+      ++frame;
+      frame_ready = video.read_frame(luma) == io::Y4mRead::kFrame;
+      if (options.progress && counters.frames_sent >= next_report * 100) {
+        std::fprintf(stderr, "markloop-sim: live: %zu frames\n", frame);
+        ++next_report;
+      }
+    } else {
+      can::CanFrame out = odometry[next_can++];
+      out.timestamp_ns = 0;  // the kernel stamps what goes on the bus
+      if (bus.send(out))
+        ++counters.can_errors;
+      else
+        ++counters.can_sent;
+    }
+  }
+  counters.interrupted = g_stop != 0;
+  output.stop();
+  bus.close();
+  return true;
+}
+
+}  // namespace markloop::sim
