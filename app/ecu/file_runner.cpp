@@ -202,7 +202,6 @@ int run_file_mode(const RunOptions& options) {
     // End of the recording: the rest of the log, then what is still in flight.
     feed_until(last_time + period);
     ecu.finish(last_time + period);
-    ecu.send_status(last_time + period);
   }
   if (stop_signal != 0 && !quiet)
     std::fprintf(stderr, "markloop: %s: stopping\n", strsignal(stop_signal));
