@@ -21,7 +21,7 @@ struct CameraSettings {
   PixelFormat format = PixelFormat::kGrey;
   unsigned width = 1280;               // must match the calibration
   unsigned height = 512;
-  unsigned fps = 10;
+  unsigned fps = 10;                   // 0: the driver's rate (HDMI-like inputs); deadlines as 10
   unsigned timeout_ms = 500;           // no frame this long: camera lost
 };
 

@@ -40,7 +40,7 @@ Ecu::Ecu(const EcuConfig& config, const perception::CameraModel& camera,
       map_store_(config.map_file),
       bus_(bus),
       log_(log),
-      frame_period_(std::chrono::nanoseconds(1'000'000'000LL / std::max(1U, config.camera.fps))) {}
+      frame_period_(std::chrono::nanoseconds(1'000'000'000LL / (config.camera.fps == 0 ? 10U : config.camera.fps))) {}
 
 MapLoadResult Ecu::load_map() {
   return map_store_.load(engine_.mutable_database(), config_.engine.match);

@@ -131,7 +131,7 @@ int run_live_mode(const RunOptions& options) {
   (void)platform::arm_timer_absolute(status_timer.get(), start + status_period, status_period);
   (void)systemd.notify("READY=1");
   nanoseconds last_watchdog = start;
-  const nanoseconds frame_period(1'000'000'000LL / std::max(1U, config.camera.fps));
+  const nanoseconds frame_period(1'000'000'000LL / (config.camera.fps == 0 ? 10U : config.camera.fps));
   std::uint64_t camera_dropped_seen = 0;
   int stop_signal = 0;
 
