@@ -53,9 +53,17 @@ struct DetectorConfig {
   // Thin long parts are lane lines or kerbs: never grouped, never classified.
   float line_max_width_m = 0.30f;
   float line_min_length_m = 2.0f;
-  // Parts whose boxes come closer than this (along, across the road) form one marking.
+  // Large sparse parts (a stop line joined to a lane line, kerbs) are set
+  // apart likewise: both sides over sparse_min_size_m, paint under sparse_max_fill.
+  float sparse_min_size_m = 2.0f;
+  float sparse_max_fill = 0.15f;
+  // Parts whose boxes come closer than this (along, across the road) form one
+  // marking; only parts up to group_max_part_m either way are grouped
+  // (letters, digits, stripes): arrows are whole already, and lines and
+  // kerbs must not swallow the markings next to them.
   float group_gap_along_m = 0.6f;
   float group_gap_across_m = 0.6f;
+  float group_max_part_m = 3.2f;
   float max_marking_length_m = 9.0f;  // larger groups are not markings (cars, shadows' edges)
   float max_marking_width_m = 9.0f;
   float min_score = 0.5f;  // below: rejected even if a marking class wins

@@ -1,0 +1,65 @@
+#include "perception/birdseye.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace markloop::perception {
+
+BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& region,
+                           int ignore_rows_from)
+    : region_(region), source_cols_(camera.width()), source_rows_(camera.height()) {
+  rows_ = std::max(1, static_cast<int>(std::lround((region.x_far_m - region.x_near_m) /
+                                                   region.x_step_m)));
+  cols_ = std::max(1, static_cast<int>(std::lround((region.y_left_m - region.y_right_m) /
+                                                   region.y_step_m)));
+  const std::size_t n = static_cast<std::size_t>(rows_) * static_cast<std::size_t>(cols_);
+  source_row_.assign(n, -1);
+  source_col_.assign(n, 0);
+  weight_x_.assign(n, 0);
+  weight_y_.assign(n, 0);
+  valid_ = cv::Mat::zeros(rows_, cols_, CV_8UC1);
+  const int last_row = ignore_rows_from > 0 ? std::min(ignore_rows_from, source_rows_) - 1
+                                            : source_rows_ - 1;
+  for (int r = 0; r < rows_; ++r) {
+    for (int c = 0; c < cols_; ++c) {
+      Eigen::Vector2d pixel;
+      if (!camera.ground_to_image({ground_x(static_cast<float>(r)), ground_y(static_cast<float>(c))},
+                                  pixel))
+        continue;
+      // Bilinear reads (u, v) .. (u+1, v+1): all four must be road pixels.
+      if (!(pixel.x() >= 0.0 && pixel.y() >= 0.0 && pixel.x() < source_cols_ - 1 &&
+            pixel.y() < last_row))
+        continue;
+      const int u = static_cast<int>(pixel.x()), v = static_cast<int>(pixel.y());
+      const std::size_t i = static_cast<std::size_t>(r) * cols_ + c;
+      source_row_[i] = static_cast<std::int16_t>(v);
+      source_col_[i] = static_cast<std::int16_t>(u);
+      weight_x_[i] = static_cast<std::uint8_t>(std::min(255.0, std::floor((pixel.x() - u) * 256.0)));
+      weight_y_[i] = static_cast<std::uint8_t>(std::min(255.0, std::floor((pixel.y() - v) * 256.0)));
+      valid_.at<std::uint8_t>(r, c) = 255;
+    }
+  }
+}
+
+void BirdsEyeView::warp(const cv::Mat& grey, cv::Mat& out) const {
+  const std::uint8_t* src = grey.ptr<std::uint8_t>(0);
+  const std::size_t stride = grey.step[0];
+  for (int r = 0; r < rows_; ++r) {
+    std::uint8_t* dst = out.ptr<std::uint8_t>(r);
+    const std::size_t base = static_cast<std::size_t>(r) * cols_;
+    for (int c = 0; c < cols_; ++c) {
+      const int v = source_row_[base + c];
+      if (v < 0) {
+        dst[c] = 0;
+        continue;
+      }
+      const std::uint8_t* p = src + static_cast<std::size_t>(v) * stride + source_col_[base + c];
+      const int fx = weight_x_[base + c], fy = weight_y_[base + c];
+      const int top = p[0] * (256 - fx) + p[1] * fx;
+      const int bottom = p[stride] * (256 - fx) + p[stride + 1] * fx;
+      dst[c] = static_cast<std::uint8_t>((top * (256 - fy) + bottom * fy + (1 << 15)) >> 16);
+    }
+  }
+}
+
+}  // namespace markloop::perception

@@ -1,0 +1,400 @@
+#include "perception/marking_detector.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+
+#include <opencv2/core/persistence.hpp>
+
+#include "perception/marking_classifier.hpp"
+
+namespace markloop::perception {
+namespace {
+
+int find_root(std::int32_t* parent, int i) {
+  while (parent[i] != i) {
+    parent[i] = parent[parent[i]];  // path halving
+    i = parent[i];
+  }
+  return i;
+}
+
+void unite(std::int32_t* parent, int a, int b) {
+  a = find_root(parent, a);
+  b = find_root(parent, b);
+  if (a < b)
+    parent[b] = a;
+  else if (b < a)
+    parent[a] = b;
+}
+
+int odd_at_least_3(float value) {
+  const int n = std::max(3, static_cast<int>(std::lround(value)));
+  return n | 1;
+}
+
+}  // namespace
+
+MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig& config)
+    : camera_(camera),
+      config_(config),
+      birdseye_(camera, config.region, config.ignore_image_rows_from),
+      model_(config.model != nullptr ? config.model : &builtin_marking_model()) {
+  const int rows = birdseye_.rows(), cols = birdseye_.cols();
+  const auto& region = config.region;
+  window_cols_ = odd_at_least_3(config.local_window_m / region.y_step_m);
+  window_rows_ = odd_at_least_3(config.local_window_m / region.x_step_m);
+  min_part_area_px_ = std::max(
+      1, static_cast<int>(std::lround(config.min_part_area_m2 / (region.x_step_m * region.y_step_m))));
+  bev_.create(rows, cols, CV_8UC1);
+  bev_.setTo(0);
+  mask_.create(rows, cols, CV_8UC1);
+  mask_.setTo(0);
+  integral_.create(rows + 1, cols + 1, CV_32SC1);
+  integral_.setTo(0);
+  // Valid-pixel counts never change: integrate them once.
+  valid_integral_.create(rows + 1, cols + 1, CV_32SC1);
+  valid_integral_.setTo(0);
+  const cv::Mat& valid = birdseye_.valid();
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* v = valid.ptr<std::uint8_t>(r);
+    const std::int32_t* above = valid_integral_.ptr<std::int32_t>(r);
+    std::int32_t* out = valid_integral_.ptr<std::int32_t>(r + 1);
+    std::int32_t line = 0;
+    for (int c = 0; c < cols; ++c) {
+      line += v[c] != 0 ? 1 : 0;
+      out[c + 1] = above[c + 1] + line;
+    }
+  }
+  const std::size_t pixels = static_cast<std::size_t>(rows) * cols;
+  pixel_labels_.assign(pixels, -1);
+  // 8-connected labelling gives at most one provisional label per two pixels
+  // of a row, plus one.
+  const std::size_t max_labels = static_cast<std::size_t>(rows) * ((cols + 1) / 2 + 1);
+  parent_.assign(max_labels, 0);
+  label_box_.assign(max_labels, Part{});
+  parts_.assign(kMaxParts, Part{});
+  group_parent_.assign(kMaxParts, 0);
+  group_candidate_.assign(kMaxParts, -1);
+}
+
+std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
+  ++counters_.frames;
+  detection_count_ = 0;
+  candidate_count_ = 0;
+  if (grey.type() != CV_8UC1 || grey.cols != camera_.width() || grey.rows != camera_.height() ||
+      !model_is_usable(*model_)) {
+    ++counters_.bad_frames;
+    return {};
+  }
+  birdseye_.warp(grey, bev_);
+  threshold();
+  const std::size_t part_count = label_parts();
+  group_parts(part_count);
+  for (std::size_t i = 0; i < candidate_count_; ++i) {
+    Candidate& candidate = candidates_[i];
+    classify(candidate);
+    if (candidate.predicted == kRejectClass) {
+      ++counters_.rejected;
+      continue;
+    }
+    if (candidate.score < config_.min_score) {
+      ++counters_.low_score;
+      continue;
+    }
+    if (detection_count_ == kMaxDetections) {
+      ++counters_.detections_dropped;
+      continue;
+    }
+    Detection& d = detections_[detection_count_++];
+    d.label = static_cast<Label>(candidate.predicted);
+    d.score = candidate.score;
+    locate(candidate, d);
+    ++counters_.detections;
+  }
+  return {detections_.data(), detection_count_};
+}
+
+void MarkingDetector::threshold() {
+  const int rows = bev_.rows, cols = bev_.cols;
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* in = bev_.ptr<std::uint8_t>(r);
+    const std::int32_t* above = integral_.ptr<std::int32_t>(r);
+    std::int32_t* out = integral_.ptr<std::int32_t>(r + 1);
+    std::int32_t line = 0;
+    for (int c = 0; c < cols; ++c) {
+      line += in[c];
+      out[c + 1] = above[c + 1] + line;
+    }
+  }
+  const int half_r = window_rows_ / 2, half_c = window_cols_ / 2;
+  const float ratio = config_.min_contrast_ratio;
+  const float contrast = static_cast<float>(config_.min_contrast);
+  const cv::Mat& valid = birdseye_.valid();
+  for (int r = 0; r < rows; ++r) {
+    const int r0 = std::max(0, r - half_r), r1 = std::min(rows, r + half_r + 1);
+    const std::int32_t* sum_top = integral_.ptr<std::int32_t>(r0);
+    const std::int32_t* sum_bottom = integral_.ptr<std::int32_t>(r1);
+    const std::int32_t* count_top = valid_integral_.ptr<std::int32_t>(r0);
+    const std::int32_t* count_bottom = valid_integral_.ptr<std::int32_t>(r1);
+    const std::uint8_t* in = bev_.ptr<std::uint8_t>(r);
+    const std::uint8_t* v = valid.ptr<std::uint8_t>(r);
+    std::uint8_t* out = mask_.ptr<std::uint8_t>(r);
+    for (int c = 0; c < cols; ++c) {
+      out[c] = 0;
+      if (v[c] == 0) continue;
+      const int c0 = std::max(0, c - half_c), c1 = std::min(cols, c + half_c + 1);
+      const std::int32_t count = count_bottom[c1] - count_bottom[c0] - count_top[c1] + count_top[c0];
+      const std::int32_t sum = sum_bottom[c1] - sum_bottom[c0] - sum_top[c1] + sum_top[c0];
+      const float mean = static_cast<float>(sum) / static_cast<float>(std::max(count, 1));
+      if (static_cast<float>(in[c]) > mean + std::max(contrast, ratio * mean)) out[c] = 255;
+    }
+  }
+}
+
+std::size_t MarkingDetector::label_parts() {
+  const int rows = mask_.rows, cols = mask_.cols;
+  std::int32_t* labels = pixel_labels_.data();
+  std::int32_t* parent = parent_.data();
+  int next = 0;
+  const int max_labels = static_cast<int>(parent_.size());
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
+    std::int32_t* row = labels + static_cast<std::size_t>(r) * cols;
+    const std::int32_t* up = r > 0 ? row - cols : nullptr;
+    for (int c = 0; c < cols; ++c) {
+      if (m[c] == 0) {
+        row[c] = -1;
+        continue;
+      }
+      int label = -1;
+      const auto join = [&](std::int32_t other) {
+        if (other < 0) return;
+        if (label < 0)
+          label = other;
+        else if (other != label)
+          unite(parent, label, other);
+      };
+      if (c > 0) join(row[c - 1]);
+      if (up != nullptr) {
+        if (c > 0) join(up[c - 1]);
+        join(up[c]);
+        if (c + 1 < cols) join(up[c + 1]);
+      }
+      if (label < 0) {
+        // Cannot overflow (see the constructor), but never index past the end.
+        if (next == max_labels) {
+          row[c] = -1;
+          continue;
+        }
+        label = next++;
+        parent[label] = label;
+        label_box_[label] = Part{c, r, c, r, 0, 0};
+      }
+      row[c] = label;
+      Part& box = label_box_[label];
+      box.col0 = std::min(box.col0, c);
+      box.col1 = std::max(box.col1, c);
+      box.row1 = r;  // rows only grow
+      ++box.area;
+    }
+  }
+  // Merge each provisional label's box into its root's.
+  for (int label = 0; label < next; ++label) {
+    const int root = find_root(parent, label);
+    if (root == label) continue;
+    Part& into = label_box_[root];
+    const Part& from = label_box_[label];
+    into.col0 = std::min(into.col0, from.col0);
+    into.col1 = std::max(into.col1, from.col1);
+    into.row0 = std::min(into.row0, from.row0);
+    into.row1 = std::max(into.row1, from.row1);
+    into.area += from.area;
+  }
+  const auto& region = config_.region;
+  std::size_t count = 0;
+  for (int label = 0; label < next; ++label) {
+    if (parent[label] != label) continue;
+    const Part& box = label_box_[label];
+    if (box.area < min_part_area_px_) continue;
+    const float length = static_cast<float>(box.row1 - box.row0 + 1) * region.x_step_m;
+    const float width = static_cast<float>(box.col1 - box.col0 + 1) * region.y_step_m;
+    const float fill = static_cast<float>(box.area) /
+                       static_cast<float>((box.row1 - box.row0 + 1) * (box.col1 - box.col0 + 1));
+    if ((width <= config_.line_max_width_m && length >= config_.line_min_length_m) ||
+        (width >= config_.sparse_min_size_m && length >= config_.sparse_min_size_m &&
+         fill < config_.sparse_max_fill)) {
+      ++counters_.lane_lines;
+      continue;
+    }
+    if (length > config_.max_marking_length_m || width > config_.max_marking_width_m) {
+      ++counters_.oversize;
+      continue;
+    }
+    if (count == kMaxParts) {
+      ++counters_.parts_dropped;
+      continue;
+    }
+    parts_[count++] = box;
+  }
+  counters_.parts += count;
+  return count;
+}
+
+void MarkingDetector::group_parts(std::size_t part_count) {
+  const auto& region = config_.region;
+  const int gap_cols = static_cast<int>(std::lround(config_.group_gap_across_m / region.y_step_m));
+  const int gap_rows = static_cast<int>(std::lround(config_.group_gap_along_m / region.x_step_m));
+  const int max_cols = static_cast<int>(std::lround(config_.group_max_part_m / region.y_step_m));
+  const int max_rows = static_cast<int>(std::lround(config_.group_max_part_m / region.x_step_m));
+  const auto groupable = [&](const Part& p) {
+    return p.col1 - p.col0 < max_cols && p.row1 - p.row0 < max_rows;
+  };
+  std::int32_t* parent = group_parent_.data();
+  for (std::size_t i = 0; i < part_count; ++i) parent[i] = static_cast<std::int32_t>(i);
+  for (std::size_t i = 0; i < part_count; ++i) {
+    const Part& a = parts_[i];
+    if (!groupable(a)) continue;
+    for (std::size_t j = i + 1; j < part_count; ++j) {
+      const Part& b = parts_[j];
+      if (!groupable(b)) continue;
+      if (b.col0 > a.col1 + gap_cols || a.col0 > b.col1 + gap_cols) continue;
+      if (b.row0 > a.row1 + gap_rows || a.row0 > b.row1 + gap_rows) continue;
+      unite(parent, static_cast<int>(i), static_cast<int>(j));
+    }
+  }
+  for (std::size_t i = 0; i < part_count; ++i) group_candidate_[i] = -1;
+  for (std::size_t i = 0; i < part_count; ++i) {
+    const int root = find_root(parent, static_cast<int>(i));
+    const Part& p = parts_[i];
+    std::int32_t& slot = group_candidate_[root];
+    if (slot < 0) {
+      if (candidate_count_ == kMaxCandidates) {
+        ++counters_.candidates_dropped;
+        continue;
+      }
+      slot = static_cast<std::int32_t>(candidate_count_++);
+      Candidate& c = candidates_[slot];
+      c.col0 = p.col0;
+      c.row0 = p.row0;
+      c.col1 = p.col1;
+      c.row1 = p.row1;
+      c.parts = 1;
+      continue;
+    }
+    Candidate& c = candidates_[slot];
+    c.col0 = std::min(c.col0, p.col0);
+    c.row0 = std::min(c.row0, p.row0);
+    c.col1 = std::max(c.col1, p.col1);
+    c.row1 = std::max(c.row1, p.row1);
+    ++c.parts;
+  }
+  // Groups grown too large are not markings (the edges of cars, shadows).
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < candidate_count_; ++i) {
+    Candidate& c = candidates_[i];
+    c.length_m = static_cast<float>(c.row1 - c.row0 + 1) * region.x_step_m;
+    c.width_m = static_cast<float>(c.col1 - c.col0 + 1) * region.y_step_m;
+    if (c.length_m > config_.max_marking_length_m || c.width_m > config_.max_marking_width_m) {
+      ++counters_.oversize;
+      continue;
+    }
+    candidates_[kept++] = c;
+  }
+  candidate_count_ = kept;
+  counters_.candidates += kept;
+}
+
+void MarkingDetector::classify(Candidate& candidate) {
+  const PatchBox box{candidate.col0,    candidate.row0,   candidate.col1, candidate.row1,
+                     candidate.length_m, candidate.width_m, candidate.parts};
+  compute_features(bev_, mask_, box, scratch_, candidate.features);
+  std::array<float, kClassifierOutputs> probabilities;
+  candidate.predicted = perception::classify(*model_, candidate.features, probabilities);
+  candidate.score = probabilities[candidate.predicted];
+}
+
+void MarkingDetector::locate(const Candidate& candidate, Detection& out) const {
+  const float far = birdseye_.ground_x(static_cast<float>(candidate.row0) - 0.5f);
+  const float near = birdseye_.ground_x(static_cast<float>(candidate.row1) + 0.5f);
+  const float left = birdseye_.ground_y(static_cast<float>(candidate.col0) - 0.5f);
+  const float right = birdseye_.ground_y(static_cast<float>(candidate.col1) + 0.5f);
+  // The dataset's corner order: near left, near right, far right, far left.
+  const std::array<std::array<float, 2>, 4> corners = {
+      {{near, left}, {near, right}, {far, right}, {far, left}}};
+  for (std::size_t i = 0; i < 4; ++i) {
+    Eigen::Vector2d pixel(-1.0, -1.0);
+    camera_.ground_to_image({corners[i][0], corners[i][1]}, pixel);
+    out.quad[i] = {static_cast<float>(pixel.x()), static_cast<float>(pixel.y())};
+  }
+  out.ground_x = 0.5f * (near + far);
+  out.ground_y = 0.5f * (left + right);
+}
+
+bool load_detector_config(const std::string& path, DetectorConfig& config, std::string& error) {
+  try {
+    cv::FileStorage fs(path, cv::FileStorage::READ);
+    if (!fs.isOpened()) {
+      error = path + ": cannot open as an OpenCV YAML/XML file";
+      return false;
+    }
+    DetectorConfig c = config;
+    struct Key {
+      const char* name;
+      float* value;
+      float min, max;
+    };
+    const Key keys[] = {
+        {"detector_x_near_m", &c.region.x_near_m, 0.0f, 100.0f},
+        {"detector_x_far_m", &c.region.x_far_m, 0.5f, 200.0f},
+        {"detector_y_left_m", &c.region.y_left_m, -50.0f, 50.0f},
+        {"detector_y_right_m", &c.region.y_right_m, -50.0f, 50.0f},
+        {"detector_x_step_m", &c.region.x_step_m, 0.005f, 1.0f},
+        {"detector_y_step_m", &c.region.y_step_m, 0.005f, 1.0f},
+        {"detector_local_window_m", &c.local_window_m, 0.1f, 20.0f},
+        {"detector_min_score", &c.min_score, 0.0f, 1.0f},
+    };
+    for (const Key& key : keys) {
+      const cv::FileNode node = fs[key.name];
+      if (node.empty()) continue;
+      if (!node.isReal() && !node.isInt()) {
+        error = path + ": " + key.name + " must be a number";
+        return false;
+      }
+      const double v = static_cast<double>(node);
+      if (!(v >= key.min && v <= key.max)) {
+        error = path + ": " + key.name + " = " + std::to_string(v) + " out of range " +
+                std::to_string(key.min) + ".." + std::to_string(key.max);
+        return false;
+      }
+      *key.value = static_cast<float>(v);
+    }
+    const cv::FileNode rows = fs["detector_ignore_image_rows_from"];
+    if (!rows.empty()) {
+      if (!rows.isInt()) {
+        error = path + ": detector_ignore_image_rows_from must be a whole number";
+        return false;
+      }
+      c.ignore_image_rows_from = static_cast<int>(rows);
+    }
+    if (!(c.region.x_far_m > c.region.x_near_m + c.region.x_step_m) ||
+        !(c.region.y_left_m > c.region.y_right_m + c.region.y_step_m)) {
+      error = path + ": detector region is empty (need x_far > x_near, y_left > y_right)";
+      return false;
+    }
+    const double cells = (c.region.x_far_m - c.region.x_near_m) / c.region.x_step_m *
+                         (c.region.y_left_m - c.region.y_right_m) / c.region.y_step_m;
+    if (cells > 4.0e6) {
+      error = path + ": detector region has " + std::to_string(cells) +
+              " bird's-eye pixels; at most 4e6";
+      return false;
+    }
+    config = c;
+    return true;
+  } catch (const std::exception& e) {
+    error = path + ": " + e.what();
+    return false;
+  }
+}
+
+}  // namespace markloop::perception

@@ -1,0 +1,31 @@
+// Annotated marking images (the roadmarks-honda layout, which the simulator's
+// training-set mode also writes): DIR/annotations.csv with
+// `image,label,x1,y1,x2,y2,x3,y3,x4,y4` and the images under DIR/images/.
+// Host-only (training and evaluation).
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace markloop::perception::train {
+
+struct Annotation {
+  std::string label;
+  std::array<std::array<float, 2>, 4> quad;  // pixels
+};
+
+struct AnnotatedImage {
+  std::string name;  // file name under images/
+  std::vector<Annotation> annotations;
+};
+
+// Images in file-name order. False with `error` = "FILE:LINE: what is wrong".
+bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images,
+                      std::string& error);
+
+// The dataset's clips: frames come in blocks of 60 consecutive numbers
+// (roadmark_NNNN.jpg -> (NNNN - 1) / 60); -1 when the name has no number.
+int clip_of(const std::string& name);
+
+}  // namespace markloop::perception::train

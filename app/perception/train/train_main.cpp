@@ -1,0 +1,626 @@
+// markloop-train: trains the marking classifier on the detector's own
+// candidates in annotated images (real and simulated), evaluates it on
+// clips held apart, and writes the model as a C++ source file.
+//
+// Every candidate the detector proposes in a training image is labelled by
+// the annotation whose quadrilateral contains its centre (the class), or
+// "reject" when none does; candidates on annotations of classes markloop
+// does not know (X-crossing, hump, ...) are left out. Fixed seeds: the same
+// command gives the same model.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <numeric>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "cli/cli.hpp"
+#include "perception/camera_model.hpp"
+#include "perception/marking_classes.hpp"
+#include "perception/marking_classifier.hpp"
+#include "perception/marking_detector.hpp"
+#include "perception/train/dataset.hpp"
+
+namespace {
+
+using namespace markloop::perception;
+using markloop::cli::fail;
+
+constexpr const char* kUsage =
+    "usage: markloop-train --real DIR --real-camera FILE [--sim DIR]... [--sim-test DIR]...\n"
+    "                      [--folds N] [--seed N] [--epochs N] [--hidden N] [--out FILE.cpp]\n"
+    "\n"
+    "Trains the road-marking classifier on the detector's candidates in annotated\n"
+    "images and writes it as C++ source (app/perception/model/marking_model.cpp).\n"
+    "\n"
+    "  --real DIR          real images: DIR/annotations.csv + DIR/images/ (roadmarks-honda)\n"
+    "  --real-camera FILE  calibration (and detector region) of the real camera\n"
+    "  --sim DIR           simulator training set (markloop-sim training-set), with\n"
+    "                      DIR/camera.yaml; repeatable\n"
+    "  --sim-test DIR      simulator set held apart: only evaluated; repeatable\n"
+    "  --folds N           cross-validation by clip on the real images (default 4; 0: none):\n"
+    "                      clip c (60-frame block) is validated in fold c mod N by a model\n"
+    "                      trained without it\n"
+    "  --seed N            random seed (default 1)\n"
+    "  --epochs N          training epochs (default 60)\n"
+    "  --hidden N          hidden units (default 64)\n"
+    "  --reject-weight W   factor on the reject class's loss weight (default 1)\n"
+    "  --weight-decay W    L2 weight decay (default 1e-4)\n"
+    "  --out FILE.cpp      write the model trained on all training data\n";
+
+// The classes the targets are judged on: enough real examples to measure.
+constexpr std::array<std::string_view, 11> kMainClasses = {
+    "leftturn", "forward", "rightturn", "35",  "xing",         "ped",
+    "rail",     "bike",    "stop",      "40",  "forward&right"};
+
+struct Sample {
+  Features features;
+  int label;    // class index or kRejectClass
+  int image;    // index into the images of its set
+  int clip;     // real: 60-frame block; sim: -1
+  bool real;
+  bool augmented;               // a shifted or mirrored copy: training only
+  std::array<float, 2> centre;  // quad centre in the image, pixels
+};
+
+// Mirror images of arrows are arrows of the mirrored class.
+int mirrored_class(int label) {
+  const auto name = [](const char* n) { return static_cast<int>(*marking_class_from_name(n)); };
+  if (label == name("leftturn")) return name("rightturn");
+  if (label == name("rightturn")) return name("leftturn");
+  if (label == name("forward&left")) return name("forward&right");
+  if (label == name("forward&right")) return name("forward&left");
+  if (label == name("forward") || label == name("diamond") || label == name("stopline") ||
+      label == name("crosswalk") || label == kRejectClass)
+    return label;
+  return -1;  // words, numbers, symbols: no mirror image on the road
+}
+
+constexpr int kJitters = 6;
+
+struct ImageSet {
+  std::string dir;
+  bool real = false;
+  std::vector<train::AnnotatedImage> images;
+  std::vector<Sample> samples;  // every candidate; label -2 = left out of training
+};
+
+bool inside(const std::array<std::array<float, 2>, 4>& quad, float x, float y) {
+  std::vector<cv::Point2f> poly;
+  for (const auto& p : quad) poly.emplace_back(p[0], p[1]);
+  return cv::pointPolygonTest(poly, cv::Point2f(x, y), false) >= 0;
+}
+
+ImageSet extract(const std::string& dir, const std::string& camera_path, bool real) {
+  ImageSet set;
+  set.dir = dir;
+  set.real = real;
+  std::string error;
+  if (!train::load_annotations(dir, set.images, error)) fail(error);
+  const auto camera = load_camera_model(camera_path, error);
+  if (!camera) fail(error);
+  DetectorConfig config;
+  if (!load_detector_config(camera_path, config, error)) fail(error);
+  MarkingDetector detector(*camera, config);
+  std::mt19937 rng(12345);
+  std::uniform_real_distribution<float> jitter(-0.08f, 0.08f);
+  cv::Mat flipped_bev, flipped_mask;
+  int flipped_for = -1;
+  int loaded = 0;
+  for (std::size_t i = 0; i < set.images.size(); ++i) {
+    const auto& image = set.images[i];
+    const std::string path = dir + "/images/" + image.name;
+    cv::Mat grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    if (grey.empty()) fail(path + ": cannot read the image");
+    if (grey.cols != camera->width() || grey.rows != camera->height())
+      fail(path + ": image is " + std::to_string(grey.cols) + "x" + std::to_string(grey.rows) +
+           ", the camera " + std::to_string(camera->width()) + "x" +
+           std::to_string(camera->height()));
+    detector.detect(grey);
+    ++loaded;
+    for (const Candidate& c : detector.candidates()) {
+      Detection where{};
+      detector.locate(c, where);
+      Sample s;
+      s.features = c.features;
+      s.image = static_cast<int>(i);
+      s.clip = real ? train::clip_of(image.name) : -1;
+      s.real = real;
+      s.centre = {0.0f, 0.0f};
+      for (const auto& p : where.quad) {
+        s.centre[0] += 0.25f * p[0];
+        s.centre[1] += 0.25f * p[1];
+      }
+      s.label = kRejectClass;
+      s.augmented = false;
+      for (const auto& a : image.annotations) {
+        if (!inside(a.quad, s.centre[0], s.centre[1])) continue;
+        const auto label = marking_class_from_name(a.label);
+        s.label = label ? static_cast<int>(*label) : -2;
+        break;
+      }
+      set.samples.push_back(s);
+      if (s.label < 0) continue;
+      // Shifted and scaled boxes, as the detector would cut them on another
+      // frame; markings get more copies than the plentiful rejects.
+      const int copies = s.label == kRejectClass ? 1 : kJitters;
+      const int w = c.col1 - c.col0 + 1, h = c.row1 - c.row0 + 1;
+      const auto add = [&](const cv::Mat& bev, const cv::Mat& mask, int col0, int col1, int label) {
+        for (int k = 0; k < copies; ++k) {
+          PatchBox box{col0 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(w))),
+                       c.row0 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(h))),
+                       col1 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(w))),
+                       c.row1 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(h))),
+                       c.length_m, c.width_m, c.parts};
+          box.col0 = std::clamp(box.col0, 0, bev.cols - 1);
+          box.col1 = std::clamp(box.col1, box.col0, bev.cols - 1);
+          box.row0 = std::clamp(box.row0, 0, bev.rows - 1);
+          box.row1 = std::clamp(box.row1, box.row0, bev.rows - 1);
+          Sample copy = s;
+          copy.augmented = true;
+          copy.label = label;
+          PatchScratch scratch;
+          compute_features(bev, mask, box, scratch, copy.features);
+          set.samples.push_back(copy);
+        }
+      };
+      add(detector.birdseye_image(), detector.paint_mask(), c.col0, c.col1, s.label);
+      const int mirror = mirrored_class(s.label);
+      if (mirror < 0) continue;
+      if (flipped_bev.empty() || flipped_bev.size() != detector.birdseye_image().size() ||
+          flipped_for != static_cast<int>(i)) {
+        cv::flip(detector.birdseye_image(), flipped_bev, 1);
+        cv::flip(detector.paint_mask(), flipped_mask, 1);
+        flipped_for = static_cast<int>(i);
+      }
+      const int cols = detector.birdseye_image().cols;
+      add(flipped_bev, flipped_mask, cols - 1 - c.col1, cols - 1 - c.col0, mirror);
+    }
+  }
+  std::printf("%s: %d images, %zu candidates\n", dir.c_str(), loaded, set.samples.size());
+  return set;
+}
+
+// A one-hidden-layer perceptron trained with Adam on class-weighted softmax
+// cross-entropy; the weights written out are exactly these.
+struct Mlp {
+  int inputs = 0, hidden = 0, outputs = 0;
+  Eigen::VectorXf mean, inv_std;
+  Eigen::MatrixXf w1, w2;  // hidden x inputs, outputs x hidden
+  Eigen::VectorXf b1, b2;
+
+  MlpModel view() const {
+    MlpModel m;
+    m.inputs = inputs;
+    m.hidden = hidden;
+    m.outputs = outputs;
+    m.feature_mean = mean.data();
+    m.feature_inv_std = inv_std.data();
+    m.w1 = w1_row_major.data();
+    m.b1 = b1.data();
+    m.w2 = w2_row_major.data();
+    m.b2 = b2.data();
+    return m;
+  }
+  void freeze() {
+    w1_row_major.resize(w1.size());
+    w2_row_major.resize(w2.size());
+    for (int j = 0; j < hidden; ++j)
+      for (int i = 0; i < inputs; ++i) w1_row_major[j * inputs + i] = w1(j, i);
+    for (int k = 0; k < outputs; ++k)
+      for (int j = 0; j < hidden; ++j) w2_row_major[k * hidden + j] = w2(k, j);
+  }
+  std::vector<float> w1_row_major, w2_row_major;
+};
+
+struct TrainOptions {
+  int epochs = 60;
+  int hidden = 64;
+  unsigned seed = 1;
+  float reject_weight = 1.0f;  // extra factor on the reject class's weight
+  float weight_decay = 1e-4f;
+};
+
+Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& options) {
+  const int n = static_cast<int>(data.size());
+  const int d = kFeatureCount, k = kClassifierOutputs;
+  Mlp m;
+  m.inputs = d;
+  m.hidden = options.hidden;
+  m.outputs = k;
+  Eigen::MatrixXf x(d, n);
+  for (int s = 0; s < n; ++s)
+    for (int i = 0; i < d; ++i) x(i, s) = data[s]->features[i];
+  m.mean = x.rowwise().mean();
+  m.inv_std.resize(d);
+  for (int i = 0; i < d; ++i) {
+    const float var = (x.row(i).array() - m.mean(i)).square().mean();
+    m.inv_std(i) = 1.0f / std::sqrt(var + 1e-4f);
+  }
+  for (int s = 0; s < n; ++s) x.col(s) = (x.col(s) - m.mean).cwiseProduct(m.inv_std);
+
+  // Rare classes weigh more (inverse square root of their frequency).
+  std::vector<int> count(k, 0);
+  for (const Sample* s : data) ++count[s->label];
+  std::vector<float> class_weight(k, 0.0f);
+  for (int c = 0; c < k; ++c)
+    class_weight[c] = count[c] > 0 ? std::sqrt(static_cast<float>(n) / static_cast<float>(k * count[c])) : 0.0f;
+  class_weight[kRejectClass] *= options.reject_weight;
+
+  std::mt19937 rng(options.seed);
+  std::normal_distribution<float> normal(0.0f, 1.0f);
+  m.w1 = Eigen::MatrixXf::NullaryExpr(m.hidden, d, [&] { return normal(rng); }) *
+         std::sqrt(2.0f / static_cast<float>(d));
+  m.w2 = Eigen::MatrixXf::NullaryExpr(k, m.hidden, [&] { return normal(rng); }) *
+         std::sqrt(2.0f / static_cast<float>(m.hidden));
+  m.b1 = Eigen::VectorXf::Zero(m.hidden);
+  m.b2 = Eigen::VectorXf::Zero(k);
+
+  // Adam state.
+  Eigen::MatrixXf mw1 = Eigen::MatrixXf::Zero(m.hidden, d), vw1 = mw1;
+  Eigen::MatrixXf mw2 = Eigen::MatrixXf::Zero(k, m.hidden), vw2 = mw2;
+  Eigen::VectorXf mb1 = Eigen::VectorXf::Zero(m.hidden), vb1 = mb1;
+  Eigen::VectorXf mb2 = Eigen::VectorXf::Zero(k), vb2 = mb2;
+  constexpr float kRate = 1e-3f, kBeta1 = 0.9f, kBeta2 = 0.999f, kEps = 1e-8f;
+  const float kWeightDecay = options.weight_decay;
+  constexpr int kBatch = 64;
+  std::vector<int> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  int step = 0;
+  for (int epoch = 0; epoch < options.epochs; ++epoch) {
+    std::shuffle(order.begin(), order.end(), rng);
+    for (int start = 0; start < n; start += kBatch) {
+      const int b = std::min(kBatch, n - start);
+      Eigen::MatrixXf xb(d, b);
+      Eigen::MatrixXf target = Eigen::MatrixXf::Zero(k, b);
+      Eigen::RowVectorXf weight(b);
+      for (int j = 0; j < b; ++j) {
+        const int s = order[start + j];
+        xb.col(j) = x.col(s);
+        target(data[s]->label, j) = 1.0f;
+        weight(j) = class_weight[data[s]->label];
+      }
+      const Eigen::MatrixXf pre = (m.w1 * xb).colwise() + m.b1;
+      const Eigen::MatrixXf h = pre.cwiseMax(0.0f);
+      Eigen::MatrixXf logits = (m.w2 * h).colwise() + m.b2;
+      for (int j = 0; j < b; ++j) {
+        logits.col(j).array() -= logits.col(j).maxCoeff();
+        logits.col(j) = logits.col(j).array().exp();
+        logits.col(j) /= logits.col(j).sum();
+      }
+      Eigen::MatrixXf dlogits = (logits - target).array().rowwise() * weight.array();
+      dlogits /= static_cast<float>(b);
+      const Eigen::MatrixXf gw2 = dlogits * h.transpose() + kWeightDecay * m.w2;
+      const Eigen::VectorXf gb2 = dlogits.rowwise().sum();
+      Eigen::MatrixXf dh = m.w2.transpose() * dlogits;
+      dh = dh.cwiseProduct((pre.array() > 0.0f).cast<float>().matrix());
+      const Eigen::MatrixXf gw1 = dh * xb.transpose() + kWeightDecay * m.w1;
+      const Eigen::VectorXf gb1 = dh.rowwise().sum();
+      ++step;
+      const float c1 = 1.0f - std::pow(kBeta1, static_cast<float>(step));
+      const float c2 = 1.0f - std::pow(kBeta2, static_cast<float>(step));
+      const auto adam = [&](auto& param, auto& mom, auto& vel, const auto& grad) {
+        mom = kBeta1 * mom + (1.0f - kBeta1) * grad;
+        vel = kBeta2 * vel + (1.0f - kBeta2) * grad.cwiseProduct(grad);
+        param.array() -= kRate * (mom.array() / c1) / ((vel.array() / c2).sqrt() + kEps);
+      };
+      adam(m.w1, mw1, vw1, gw1);
+      adam(m.b1, mb1, vb1, gb1);
+      adam(m.w2, mw2, vw2, gw2);
+      adam(m.b2, mb2, vb2, gb2);
+    }
+  }
+  m.freeze();
+  return m;
+}
+
+// Detections vs annotations, per class. A detection is correct when its
+// quad centre lies inside an annotated quad of the same label; a second
+// correct detection of one marking is a duplicate (neither right nor wrong);
+// detections on annotations of unknown classes are not judged.
+struct Score {
+  std::map<std::string, int> annotated, found, detected, correct;
+  std::map<std::string, int> confusion;  // "annotated -> predicted" for missed markings
+  int duplicates = 0;
+  int wrong_label = 0;
+  int on_nothing = 0;
+};
+
+void judge(const ImageSet& set, int image_index, const std::vector<const Sample*>& detections,
+           const std::vector<int>& predicted, float min_score, const std::vector<float>& scores,
+           Score& score) {
+  const auto& image = set.images[image_index];
+  std::vector<bool> matched(image.annotations.size(), false);
+  for (const auto& a : image.annotations)
+    if (marking_class_from_name(a.label)) ++score.annotated[a.label];
+  for (std::size_t i = 0; i < detections.size(); ++i) {
+    if (predicted[i] == kRejectClass || scores[i] < min_score) continue;
+    const std::string label(marking_class_name(static_cast<markloop::Label>(predicted[i])));
+    const Sample& s = *detections[i];
+    int hit = -1;
+    for (std::size_t a = 0; a < image.annotations.size(); ++a)
+      if (inside(image.annotations[a].quad, s.centre[0], s.centre[1])) {
+        hit = static_cast<int>(a);
+        break;
+      }
+    if (hit >= 0 && !marking_class_from_name(image.annotations[hit].label)) continue;
+    if (hit >= 0 && image.annotations[hit].label == label) {
+      if (matched[hit]) {
+        ++score.duplicates;
+        continue;
+      }
+      matched[hit] = true;
+      ++score.detected[label];
+      ++score.correct[label];
+      ++score.found[label];
+      continue;
+    }
+    ++score.detected[label];
+    if (hit >= 0)
+      ++score.wrong_label;
+    else
+      ++score.on_nothing;
+  }
+  for (std::size_t a = 0; a < image.annotations.size(); ++a) {
+    if (matched[a] || !marking_class_from_name(image.annotations[a].label)) continue;
+    std::string seen = "no candidate";
+    for (std::size_t i = 0; i < detections.size(); ++i)
+      if (inside(image.annotations[a].quad, detections[i]->centre[0], detections[i]->centre[1])) {
+        seen = predicted[i] == kRejectClass
+                   ? std::string("reject")
+                   : std::string(marking_class_name(static_cast<markloop::Label>(predicted[i])));
+        if (predicted[i] != kRejectClass) break;
+      }
+    ++score.confusion[image.annotations[a].label + " -> " + seen];
+  }
+}
+
+void print_score(const char* title, const Score& score, bool main_only_total) {
+  std::printf("\n%s\n", title);
+  std::printf("%-14s %10s %7s %8s %10s %7s %9s\n", "class", "annotated", "found", "recall",
+              "detected", "right", "precision");
+  int ta = 0, tf = 0, td = 0, tc = 0;
+  for (std::string_view name : kMarkingClassNames) {
+    const std::string key(name);
+    const auto get = [&](const std::map<std::string, int>& m) {
+      const auto it = m.find(key);
+      return it == m.end() ? 0 : it->second;
+    };
+    const int a = get(score.annotated), f = get(score.found), d = get(score.detected),
+              c = get(score.correct);
+    if (a == 0 && d == 0) continue;
+    const bool main = std::find(kMainClasses.begin(), kMainClasses.end(), name) != kMainClasses.end();
+    std::printf("%-14s %10d %7d %7.1f%% %10d %7d %8.1f%%%s\n", key.c_str(), a, f,
+                a ? 100.0 * f / a : 0.0, d, c, d ? 100.0 * c / d : 0.0,
+                main_only_total && !main ? "  (not a main class)" : "");
+    if (!main_only_total || main) {
+      ta += a;
+      tf += f;
+      td += d;
+      tc += c;
+    }
+  }
+  std::printf("%-14s %10d %7d %7.1f%% %10d %7d %8.1f%%\n",
+              main_only_total ? "main classes" : "all", ta, tf, ta ? 100.0 * tf / ta : 0.0, td, tc,
+              td ? 100.0 * tc / td : 0.0);
+  std::printf("duplicates %d, wrong label %d, detections on no marking %d\n", score.duplicates,
+              score.wrong_label, score.on_nothing);
+  if (std::getenv("MARKLOOP_TRAIN_SHOW_MISSES") != nullptr)
+    for (const auto& [what, n] : score.confusion) std::printf("  missed: %-30s %d\n", what.c_str(), n);
+}
+
+void evaluate(const ImageSet& set, const Mlp& mlp, const std::vector<bool>& use_image,
+              float min_score, Score& score) {
+  const MlpModel model = mlp.view();
+  std::vector<std::vector<const Sample*>> per_image(set.images.size());
+  for (const Sample& s : set.samples)
+    if (!s.augmented) per_image[s.image].push_back(&s);
+  for (std::size_t i = 0; i < set.images.size(); ++i) {
+    if (!use_image[i]) continue;
+    std::vector<int> predicted;
+    std::vector<float> scores;
+    for (const Sample* s : per_image[i]) {
+      std::array<float, kClassifierOutputs> p;
+      const int c = classify(model, s->features, p);
+      predicted.push_back(c);
+      scores.push_back(p[c]);
+    }
+    judge(set, static_cast<int>(i), per_image[i], predicted, min_score, scores, score);
+  }
+}
+
+// The dataset holds every other 60-frame block: number the clips present in
+// order, and deal them out to the folds in turn.
+std::vector<int> g_clips;
+int fold_of(int clip, int folds) {
+  const auto it = std::lower_bound(g_clips.begin(), g_clips.end(), clip);
+  return static_cast<int>(it - g_clips.begin()) % folds;
+}
+
+// How many annotated markings have at least one candidate on them: the
+// recall the classifier could reach at best.
+void print_coverage(const ImageSet& set) {
+  std::map<std::string, std::pair<int, int>> per_class;
+  std::vector<std::vector<const Sample*>> per_image(set.images.size());
+  for (const Sample& s : set.samples)
+    if (!s.augmented) per_image[s.image].push_back(&s);
+  for (std::size_t i = 0; i < set.images.size(); ++i)
+    for (const auto& a : set.images[i].annotations) {
+      auto& [total, covered] = per_class[a.label];
+      ++total;
+      bool found = false;
+      for (const Sample* s : per_image[i])
+        if (inside(a.quad, s->centre[0], s->centre[1])) {
+          found = true;
+          break;
+        }
+      covered += found ? 1 : 0;
+      if (!found && std::getenv("MARKLOOP_TRAIN_LIST_MISSED") != nullptr)
+        std::printf("  missed %s %s\n", set.images[i].name.c_str(), a.label.c_str());
+    }
+  std::printf("\nCandidates on annotated markings (best reachable recall):\n");
+  for (const auto& [label, tc] : per_class)
+    std::printf("  %-14s %4d / %4d\n", label.c_str(), tc.second, tc.first);
+}
+
+void write_model(const Mlp& m, const std::string& path, const std::string& command,
+                 std::size_t samples) {
+  FILE* f = markloop::cli::open_output(path);
+  std::fprintf(f,
+               "// GENERATED by markloop-train: do not edit. Regenerate from the repository root\n"
+               "// (build/host built; the real images are not part of the repository):\n"
+               "//   %s\n"
+               "// %zu training candidates; %d inputs, %d hidden units (ReLU), %d outputs\n"
+               "// (the marking classes of marking_classes.hpp, then reject).\n",
+               command.c_str(), samples, m.inputs, m.hidden, m.outputs);
+  std::fprintf(f,
+               "#include \"perception/marking_classifier.hpp\"\n\n"
+               "namespace markloop::perception {\nnamespace {\n\n"
+               "constexpr int kHidden = %d;\n"
+               "static_assert(kFeatureCount == %d, \"features changed: retrain\");\n"
+               "static_assert(kClassifierOutputs == %d, \"classes changed: retrain\");\n\n",
+               m.hidden, m.inputs, m.outputs);
+  const auto array = [&](const char* name, const float* v, std::size_t n) {
+    std::fprintf(f, "constexpr float %s[%zu] = {", name, n);
+    for (std::size_t i = 0; i < n; ++i)
+      std::fprintf(f, "%s%.7ef%s", i % 8 == 0 ? "\n    " : "", static_cast<double>(v[i]),
+                   i + 1 < n ? ", " : "");
+    std::fprintf(f, "};\n\n");
+  };
+  array("kMean", m.mean.data(), m.mean.size());
+  array("kInvStd", m.inv_std.data(), m.inv_std.size());
+  array("kW1", m.w1_row_major.data(), m.w1_row_major.size());
+  array("kB1", m.b1.data(), m.b1.size());
+  array("kW2", m.w2_row_major.data(), m.w2_row_major.size());
+  array("kB2", m.b2.data(), m.b2.size());
+  std::fprintf(f,
+               "constexpr MlpModel kModel{kFeatureCount, kHidden, kClassifierOutputs, kMean, "
+               "kInvStd, kW1, kB1, kW2, kB2};\n\n"
+               "}  // namespace\n\n"
+               "const MlpModel& builtin_marking_model() { return kModel; }\n\n"
+               "}  // namespace markloop::perception\n");
+  markloop::cli::close_output(f, path);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  markloop::cli::program_name() = "markloop-train";
+  std::string real_dir, real_camera, out;
+  std::vector<std::string> sim_dirs, sim_test_dirs;
+  int folds = 4;
+  TrainOptions options;
+  std::string command = "build/host/app/perception/train/markloop-train";
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (i + 1 >= argc) fail(arg + ": needs a value (see --help)");
+    const char* value = argv[++i];
+    command += " " + arg + " " + value;
+    if (arg == "--real")
+      real_dir = value;
+    else if (arg == "--real-camera")
+      real_camera = value;
+    else if (arg == "--sim")
+      sim_dirs.emplace_back(value);
+    else if (arg == "--sim-test")
+      sim_test_dirs.emplace_back(value);
+    else if (arg == "--folds")
+      folds = static_cast<int>(markloop::cli::parse_whole(arg, value));
+    else if (arg == "--seed")
+      options.seed = markloop::cli::parse_whole(arg, value);
+    else if (arg == "--epochs")
+      options.epochs = static_cast<int>(markloop::cli::parse_whole(arg, value));
+    else if (arg == "--hidden")
+      options.hidden = static_cast<int>(markloop::cli::parse_whole(arg, value));
+    else if (arg == "--reject-weight")
+      options.reject_weight = static_cast<float>(markloop::cli::parse_number(arg, value));
+    else if (arg == "--weight-decay")
+      options.weight_decay = static_cast<float>(markloop::cli::parse_number(arg, value));
+    else if (arg == "--out")
+      out = value;
+    else
+      fail("unknown option " + arg + " (see --help)");
+  }
+  if (real_dir.empty() && sim_dirs.empty()) fail("no training data: give --real and/or --sim");
+  if (!real_dir.empty() && real_camera.empty()) fail("--real needs --real-camera");
+  if (options.hidden < 1 || options.hidden > kMaxHidden)
+    fail("--hidden must be 1.." + std::to_string(kMaxHidden));
+
+  std::vector<ImageSet> sets;
+  if (!real_dir.empty()) {
+    sets.push_back(extract(real_dir, real_camera, true));
+    for (const auto& image : sets.front().images) g_clips.push_back(train::clip_of(image.name));
+    std::sort(g_clips.begin(), g_clips.end());
+    g_clips.erase(std::unique(g_clips.begin(), g_clips.end()), g_clips.end());
+  }
+  for (const auto& dir : sim_dirs) sets.push_back(extract(dir, dir + "/camera.yaml", false));
+  std::vector<ImageSet> tests;
+  for (const auto& dir : sim_test_dirs) tests.push_back(extract(dir, dir + "/camera.yaml", false));
+
+  const float min_score = DetectorConfig{}.min_score;
+  const auto training = [&](int held_out_fold) {
+    std::vector<const Sample*> data;
+    for (const auto& set : sets)
+      for (const Sample& s : set.samples) {
+        if (s.label < 0) continue;
+        if (held_out_fold >= 0 && s.real && fold_of(s.clip, folds) == held_out_fold) continue;
+        data.push_back(&s);
+      }
+    return data;
+  };
+
+  if (!real_dir.empty() && folds > 1) {
+    const ImageSet& real = sets.front();
+    print_coverage(real);
+    Score pooled;
+    for (int fold = 0; fold < folds; ++fold) {
+      const auto data = training(fold);
+      const Mlp mlp = train_mlp(data, options);
+      std::vector<bool> use(real.images.size(), false);
+      for (std::size_t i = 0; i < real.images.size(); ++i)
+        use[i] = fold_of(train::clip_of(real.images[i].name), folds) == fold;
+      evaluate(real, mlp, use, min_score, pooled);
+      std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
+    }
+    char title[160];
+    std::snprintf(title, sizeof title,
+                  "Real images, %d-fold cross-validation by clip (each clip judged by a model "
+                  "trained without it):",
+                  folds);
+    print_score(title, pooled, true);
+  }
+
+  const auto data = training(-1);
+  const Mlp mlp = train_mlp(data, options);
+  if (std::getenv("MARKLOOP_TRAIN_SHOW_FIT") != nullptr && !real_dir.empty()) {
+    Score fit;
+    evaluate(sets.front(), mlp, std::vector<bool>(sets.front().images.size(), true), min_score, fit);
+    print_score("Real images, training fit (not a validation):", fit, true);
+  }
+  for (const auto& test : tests) {
+    print_coverage(test);
+    Score score;
+    evaluate(test, mlp, std::vector<bool>(test.images.size(), true), min_score, score);
+    print_score(("Simulator test set " + test.dir + " (never trained on):").c_str(), score, false);
+  }
+  if (!out.empty()) {
+    write_model(mlp, out, command, data.size());
+    std::printf("\nwrote %s (%zu training candidates)\n", out.c_str(), data.size());
+  }
+  return 0;
+}

@@ -1,0 +1,188 @@
+#include <cmath>
+#include <string>
+
+#include <catch2/catch_approx.hpp>
+#include <catch2/catch_test_macros.hpp>
+#include <opencv2/core/persistence.hpp>
+
+#include "perception/marking_classes.hpp"
+#include "perception/marking_classifier.hpp"
+#include "perception/marking_detector.hpp"
+#include "synthetic_road.hpp"
+
+using namespace markloop::perception;
+using markloop::perception::testing::GroundRect;
+using markloop::perception::testing::render_road;
+
+namespace {
+const std::string kCameras = std::string(MARKLOOP_SOURCE_DIR) + "/app/cameras/";
+
+// The candidate whose ground centre lies nearest (x, y).
+const Candidate* nearest(const MarkingDetector& detector, double x, double y, Detection& where) {
+  const Candidate* best = nullptr;
+  double best_d = 1e9;
+  for (const Candidate& c : detector.candidates()) {
+    Detection d{};
+    detector.locate(c, d);
+    const double dist = std::hypot(d.ground_x - x, d.ground_y - y);
+    if (dist < best_d) {
+      best_d = dist;
+      best = &c;
+      where = d;
+    }
+  }
+  return best;
+}
+}  // namespace
+
+TEST_CASE("bird's-eye view: pixels map back to the ground points they show") {
+  const CameraModel camera = default_camera_model();
+  BirdsEyeRegion region;
+  const BirdsEyeView view(camera, region);
+  CHECK(view.rows() == static_cast<int>(std::lround((region.x_far_m - region.x_near_m) / region.x_step_m)));
+  CHECK(view.cols() == static_cast<int>(std::lround((region.y_left_m - region.y_right_m) / region.y_step_m)));
+  // A frame whose grey level encodes the image column: the warped value at
+  // a bird's-eye pixel must be the column of its ground point's pixel.
+  cv::Mat frame(camera.height(), camera.width(), CV_8UC1);
+  for (int v = 0; v < frame.rows; ++v)
+    for (int u = 0; u < frame.cols; ++u) frame.at<std::uint8_t>(v, u) = static_cast<std::uint8_t>(u / 5);
+  cv::Mat out(view.rows(), view.cols(), CV_8UC1);
+  view.warp(frame, out);
+  int checked = 0;
+  for (int r = 0; r < view.rows(); r += 17)
+    for (int c = 0; c < view.cols(); c += 13) {
+      if (view.valid().at<std::uint8_t>(r, c) == 0) continue;
+      Eigen::Vector2d pixel;
+      REQUIRE(camera.ground_to_image({view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel));
+      CHECK(std::abs(out.at<std::uint8_t>(r, c) - pixel.x() / 5.0) <= 1.01);
+      ++checked;
+    }
+  CHECK(checked > 100);
+}
+
+TEST_CASE("detector: a painted block is found where it lies on the road") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  // A legend-sized block (2.4 m x 0.6 m) at 10 m, 1.5 m left.
+  const cv::Mat frame = render_road(camera, {{8.8, 11.2, 1.2, 1.8}});
+  detector.detect(frame);
+  REQUIRE_FALSE(detector.candidates().empty());
+  Detection where{};
+  const Candidate* c = nearest(detector, 10.0, 1.5, where);
+  REQUIRE(c != nullptr);
+  CHECK(where.ground_x == Catch::Approx(10.0).margin(0.15));
+  CHECK(where.ground_y == Catch::Approx(1.5).margin(0.08));
+  CHECK(c->length_m == Catch::Approx(2.4).margin(0.2));
+  CHECK(c->width_m == Catch::Approx(0.6).margin(0.1));
+  // The quad is the block's outline in the image.
+  Eigen::Vector2d near_left;
+  REQUIRE(camera.ground_to_image({8.8, 1.8}, near_left));
+  CHECK(where.quad[0][0] == Catch::Approx(near_left.x()).margin(4.0));
+  CHECK(where.quad[0][1] == Catch::Approx(near_left.y()).margin(4.0));
+}
+
+TEST_CASE("detector: digits side by side are grouped, separate markings are not") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  // Two 'digits' 0.3 m apart (one marking) and a block 3 m to the right.
+  const cv::Mat frame = render_road(camera, {{9.0, 11.4, 0.9, 1.4}, {9.0, 11.4, 0.3, 0.6},
+                                             {9.0, 11.4, -2.9, -2.3}});
+  detector.detect(frame);
+  Detection where{};
+  const Candidate* pair = nearest(detector, 10.2, 0.85, where);
+  REQUIRE(pair != nullptr);
+  CHECK(pair->parts == 2);
+  CHECK(where.ground_y == Catch::Approx(0.85).margin(0.08));
+  const Candidate* single = nearest(detector, 10.2, -2.6, where);
+  REQUIRE(single != nullptr);
+  CHECK(single->parts == 1);
+}
+
+TEST_CASE("detector: lane lines are set apart, not classified") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  const cv::Mat frame = render_road(camera, {{3.0, 25.0, 1.7, 1.85}, {3.0, 25.0, -1.85, -1.7}});
+  detector.detect(frame);
+  CHECK(detector.counters().lane_lines >= 2);
+  CHECK(detector.candidates().empty());
+}
+
+TEST_CASE("detector: an empty road gives nothing; wrong frames are counted, not processed") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  CHECK(detector.detect(render_road(camera, {})).empty());
+  CHECK(detector.candidates().empty());
+  CHECK(detector.counters().frames == 1);
+
+  const cv::Mat small(100, 100, CV_8UC1, cv::Scalar(0));
+  CHECK(detector.detect(small).empty());
+  const cv::Mat colour(camera.height(), camera.width(), CV_8UC3, cv::Scalar(0, 0, 0));
+  CHECK(detector.detect(colour).empty());
+  CHECK(detector.counters().bad_frames == 2);
+  CHECK(detector.counters().frames == 3);
+}
+
+TEST_CASE("classifier: the compiled-in model fits the features and gives probabilities") {
+  const MlpModel& model = builtin_marking_model();
+  REQUIRE(model_is_usable(model));
+  Features f{};
+  std::array<float, kClassifierOutputs> p{};
+  const int c = classify(model, f, p);
+  CHECK(c >= 0);
+  CHECK(c < kClassifierOutputs);
+  float total = 0;
+  for (float v : p) {
+    CHECK(v >= 0.0f);
+    total += v;
+  }
+  CHECK(total == Catch::Approx(1.0f).margin(1e-4));
+  MlpModel broken = model;
+  broken.inputs = kFeatureCount + 1;
+  CHECK_FALSE(model_is_usable(broken));
+}
+
+TEST_CASE("Honda calibration: ground scale and detector region from honda.yaml") {
+  std::string error;
+  const auto camera = load_camera_model(kCameras + "honda.yaml", error);
+  REQUIRE(camera);
+  CHECK(camera->width() == 800);
+  CHECK(camera->height() == 600);
+  // The vanishing point of the published homography (column 400.7, row
+  // 261.3) is the horizon: rows just below it are far away, straight ahead.
+  Eigen::Vector2d g;
+  REQUIRE(camera->image_to_ground({400.7, 300.0}, g));
+  CHECK(g.x() == Catch::Approx(13.9).margin(0.2));
+  CHECK(g.y() == Catch::Approx(0.0).margin(0.05));
+  REQUIRE(camera->image_to_ground({400.7, 350.0}, g));
+  CHECK(g.x() == Catch::Approx(6.1).margin(0.1));
+  CHECK_FALSE(camera->image_to_ground({400.0, 250.0}, g));  // sky
+
+  DetectorConfig config;
+  REQUIRE(load_detector_config(kCameras + "honda.yaml", config, error));
+  CHECK(config.region.x_far_m == Catch::Approx(16.0));
+  CHECK(config.ignore_image_rows_from == 405);
+  // The sim camera's file has no detector keys: defaults stay.
+  DetectorConfig defaults;
+  REQUIRE(load_detector_config(kCameras + "sim.yaml", defaults, error));
+  CHECK(defaults.region.x_far_m == Catch::Approx(DetectorConfig{}.region.x_far_m));
+}
+
+TEST_CASE("detector config: bad values are reported with the file") {
+  const std::string path = "/tmp/markloop-detector-config-test.yaml";
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "detector_x_near_m" << 10.0 << "detector_x_far_m" << 5.0;
+  }
+  DetectorConfig config;
+  std::string error;
+  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK(error.find(path) == 0);
+  CHECK(error.find("empty") != std::string::npos);
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "detector_min_score" << 3.0;
+  }
+  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK(error.find("detector_min_score") != std::string::npos);
+  CHECK_FALSE(load_detector_config("/nonexistent/camera.yaml", config, error));
+}
