@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <ctime>
@@ -10,8 +9,11 @@
 #include <fstream>
 #include <vector>
 
+#include <linux/videodev2.h>
+
 #include "drivers/can/candump_log.hpp"
 #include "drivers/can/socketcan.hpp"
+#include "drivers/v4l2/v4l2_device.hpp"
 #include "drivers/v4l2/v4l2_output.hpp"
 #include "io/y4m.hpp"
 
@@ -68,6 +70,27 @@ bool load_odometry(const std::string& path, std::vector<can::CanFrame>& frames, 
   return true;
 }
 
+// HDMI-like outputs take only frames of their DV timings' size: select the
+// output's timings that match the drive's frame size (vivid's HDMI output
+// offers 640x480, 1280x720, ...). Outputs without DV timings are left alone.
+std::error_code select_dv_timings(const LiveOptions& options, std::uint32_t width,
+                                  std::uint32_t height) {
+  v4l2::V4l2Device dev;
+  v4l2::DeviceInfo info;
+  if (auto ec = dev.open(options.video_device.c_str(), v4l2::V4l2Device::Direction::Output, info))
+    return ec;
+  if (options.video_output >= 0)
+    if (auto ec = dev.select_output(options.video_output)) return ec;
+  for (std::uint32_t index = 0; index < 64; ++index) {
+    v4l2_enum_dv_timings e{};
+    e.index = index;
+    if (dev.ioctl(VIDIOC_ENUM_DV_TIMINGS, &e)) break;  // end of the list, or no DV timings
+    if (e.timings.bt.width == width && e.timings.bt.height == height)
+      return dev.ioctl(VIDIOC_S_DV_TIMINGS, &e.timings);
+  }
+  return {};
+}
+
 }  // namespace
 
 bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& error) {
@@ -91,9 +114,20 @@ bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& e
   config.width = static_cast<std::uint32_t>(format.width);
   config.height = static_cast<std::uint32_t>(format.height);
   config.format = options.format;
-  config.fps = static_cast<std::uint32_t>(std::lround(1.0 / format.frame_period_s()));
+  if (const auto ec = select_dv_timings(options, config.width, config.height)) {
+    error = options.video_device + ": cannot select the output's timings: " + ec.message();
+    return false;
+  }
+  config.fps = 0;  // the pacing is ours (absolute deadlines); many outputs have no rate to set
   if (const auto ec = output.start(config)) {
     error = options.video_device + ": cannot start the V4L2 output: " + ec.message();
+    return false;
+  }
+  if (output.format().width != config.width || output.format().height != config.height) {
+    error = options.video_device + ": the output takes " + std::to_string(output.format().width) +
+            "x" + std::to_string(output.format().height) + ", the drive is " +
+            std::to_string(config.width) + "x" + std::to_string(config.height) +
+            " (record it with a --camera of that size, or select another output)";
     return false;
   }
   can::SocketCan bus;
