@@ -149,11 +149,13 @@ TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays fl
   // at all; the total RSS may grow by program text paged in when a code path
   // runs for the first time (e.g. eviction, once the rings wrap).
   REQUIRE(anonymous_samples.size() >= 7);
+#ifndef MARKLOOP_UNDER_EMULATOR  // under qemu-user these are the emulator's pages
   for (std::size_t i = 1; i < anonymous_samples.size(); ++i) {
     INFO("anonymous RSS at " << 10 * i << " min: " << anonymous_samples[i] << " bytes, at 0: "
                              << anonymous_samples[0]);
     CHECK(anonymous_samples[i] == anonymous_samples[0]);
   }
+#endif
   WARN("RSS every 10 min (total / anonymous, bytes): " << [&] {
     std::string s;
     for (std::size_t i = 0; i < rss_samples.size(); ++i)

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <string>
@@ -49,10 +50,24 @@ int run_and_signal(const fs::path& dir, int signal_number, const fs::path& map) 
   if (pid == 0) {
     const std::string frames = (dir / "frames.y4m").string(), odometry = (dir / "odometry.log").string();
     const std::string out = (dir / "out.log").string(), map_path = map.string();
-    execl(MARKLOOP_BINARY, MARKLOOP_BINARY, "--camera-file", frames.c_str(), "--can-in",
-          odometry.c_str(), "--can-out", out.c_str(), "--map", map_path.c_str(), "--realtime",
-          "--quiet", "--set", "realtime.mlockall=false", "--set", "database.landmark_capacity=1024",
-          "--set", "database.sequence_capacity=1024", static_cast<char*>(nullptr));
+    std::vector<std::string> args;
+#ifdef MARKLOOP_EMULATOR
+    // Cross build: "qemu-<arch>|-L|<root>" in front of the target binary.
+    std::string emulator = MARKLOOP_EMULATOR;
+    for (std::size_t start = 0, end; start <= emulator.size(); start = end + 1) {
+      end = std::min(emulator.find('|', start), emulator.size());
+      args.push_back(emulator.substr(start, end - start));
+    }
+#endif
+    for (const char* a : {MARKLOOP_BINARY, "--camera-file", frames.c_str(), "--can-in", odometry.c_str(),
+                          "--can-out", out.c_str(), "--map", map_path.c_str(), "--realtime", "--quiet",
+                          "--set", "realtime.mlockall=false", "--set", "database.landmark_capacity=1024",
+                          "--set", "database.sequence_capacity=1024"})
+      args.emplace_back(a);
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    execv(argv[0], argv.data());
     _exit(127);
   }
   std::this_thread::sleep_for(1500ms);  // started, a few frames in, far from the end
