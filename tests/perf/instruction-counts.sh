@@ -8,8 +8,8 @@
 #
 #   instruction-counts.sh [--host BUILD] [--aarch64 BUILD] [--few N] [--many N]
 #
-# Defaults: build/host, build/aarch64, 2000 and 12000 frames (the ring drive
-# and its repeats: the database fills and loops close). Prints a
+# Defaults: build/host, build/aarch64; FEW and MANY per stage (the engine:
+# 2000 and 12000 frames of the ring drive and its repeats). Prints a
 # Markdown table. Adding a stage is one line in `stages` below.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -27,10 +27,13 @@ while [ $# -gt 0 ]; do
   esac
 done
 [[ "$few" =~ ^[0-9]+$ && "$many" =~ ^[0-9]+$ && "$many" -gt "$few" ]] || die "--few and --many: whole numbers, many > few"
+default_few=$few default_many=$many
 
-# stage name | program (relative to a build tree) | its arguments before the frame count
+# stage name | program (relative to a build tree) | arguments before the frame
+# count | FEW | MANY (empty: --few/--many)
 stages=(
-  "engine (sequence engine, ring drive)|tests/perf/markloop-pipeline-frames|--stage engine --frames"
+  "engine (sequence engine, ring drive)|tests/perf/markloop-pipeline-frames|--stage engine --frames|2000|12000"
+  "perception (marking detector, 1280x512 grey)|tests/perf/markloop-pipeline-frames|--stage perception --frames|4|12"
 )
 
 for tool in qemu-x86_64 qemu-aarch64 cc; do
@@ -67,11 +70,12 @@ per_frame() {  # $1 = qemu, $2 = program, $3 = arguments
 echo "| stage | x86-64 instructions/frame | aarch64 instructions/frame | aarch64 / x86-64 |"
 echo "|---|---:|---:|---:|"
 for entry in "${stages[@]}"; do
-  IFS='|' read -r name program args <<<"$entry"
+  IFS='|' read -r name program args stage_few stage_many <<<"$entry"
+  few=${stage_few:-$default_few} many=${stage_many:-$default_many}
   x86=$(per_frame qemu-x86_64 "$host_build/$program" "$args")
   arm=$(per_frame qemu-aarch64 "$aarch64_build/$program" "$args")
   ratio=$(awk -v a="$arm" -v x="$x86" 'BEGIN { printf "%.2f", a / x }')
-  echo "| $name | $x86 | $arm | $ratio |"
+  echo "| $name (frames $few..$many) | $x86 | $arm | $ratio |"
 done
 echo
-echo "(frames $few..$many; x86-64 binary from $host_build, aarch64 from $aarch64_build; qemu $(qemu-aarch64 --version | head -n1 | awk '{print $3}'))"
+echo "(x86-64 binary from $host_build, aarch64 from $aarch64_build; qemu $(qemu-aarch64 --version | head -n1 | awk '{print $3}'))"
