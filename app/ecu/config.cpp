@@ -110,7 +110,8 @@ Key real_key(const char* name, double low, double high, Get field) {
               s << "must be between " << low << " and " << high << ", got " << v;
               return s.str();
             }
-            field(c) = value;
+            using T = std::remove_reference_t<decltype(field(c))>;
+            field(c) = static_cast<T>(value);
             return std::string();
           },
           [=](const EcuConfig& c) {
@@ -170,6 +171,12 @@ const std::vector<Key>& keys() {
                   [](EcuConfig& c) -> int& { return c.realtime.priority; }),
       integer_key("realtime.cpu", -1, 1023, [](EcuConfig& c) -> int& { return c.realtime.cpu; }),
       bool_key("realtime.mlockall", [](EcuConfig& c) -> bool& { return c.realtime.lock_memory; }),
+      real_key("observation.min_score", 0.0, 1.0,
+               [](EcuConfig& c) -> float& { return c.gate.min_score; }),
+      real_key("observation.min_range_m", 0.0, 100.0,
+               [](EcuConfig& c) -> float& { return c.gate.min_range_m; }),
+      real_key("observation.max_range_m", 0.0, 100.0,
+               [](EcuConfig& c) -> float& { return c.gate.max_range_m; }),
       integer_key("engine.k", 2, kMaxSequenceLength,
                   [](EcuConfig& c) -> unsigned& { return c.engine.chain.k; }),
       real_key("engine.association_radius_m", 0.01, 100.0,
@@ -249,6 +256,8 @@ std::string validate_config(const EcuConfig& config) {
   if (!camera_file && config.camera.device.empty()) return "no camera device or frame file";
   if (!camera_file && config.can.interface.empty()) return "no CAN interface or log file";
   if (config.realtime_replay && !camera_file) return "--realtime is for file mode only";
+  if (config.gate.min_range_m >= config.gate.max_range_m)
+    return "observation.min_range_m must be below observation.max_range_m";
   return {};
 }
 

@@ -135,6 +135,11 @@ void Ecu::process(std::span<const perception::Detection> detections, Nanoseconds
         ++counters_.detections_rejected;
         continue;
       }
+      if (d.score < config_.gate.min_score || d.ground_x < config_.gate.min_range_m ||
+          d.ground_x > config_.gate.max_range_m) {
+        ++counters_.detections_gated;
+        continue;
+      }
       Observation o;
       o.label = d.label;
       o.x = static_cast<float>(input.pose.x + c * d.ground_x - s * d.ground_y);

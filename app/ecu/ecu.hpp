@@ -40,6 +40,7 @@ struct EcuCounters {
   std::uint64_t overruns = 0;              // processing took longer than a frame period
   std::uint64_t detections = 0;
   std::uint64_t detections_rejected = 0;   // unknown label or non-finite position
+  std::uint64_t detections_gated = 0;      // below the score or outside the range (ObservationGate)
   std::uint64_t pose_losses = 0;           // chains broken because the pose became unknown
   std::uint64_t loop_detections = 0;
   std::uint64_t frames_sent = 0;

@@ -199,9 +199,10 @@ int run_file_mode(const RunOptions& options) {
   }
   if (input_error) exit_status = 2;
   if (exit_status == 0 && stop_signal == 0) {
-    // End of the recording: the rest of the log, then what is still in flight.
-    feed_until(last_time + period);
-    ecu.finish(last_time + period);
+    // End of the recording: the rest of the log. Tracks still in view are
+    // left unfinished, as when the car stops: committing them cut short
+    // would misplace them.
+    feed_until(last_time);
   }
   if (stop_signal != 0 && !quiet)
     std::fprintf(stderr, "markloop: %s: stopping\n", strsignal(stop_signal));
