@@ -65,6 +65,11 @@ struct EcuConfig {
   unsigned status_period_ms = 100;
   unsigned odometry_timeout_ms = 60;  // three cycles of VehicleOdometry
   bool realtime_replay = false;       // file mode: pace frames to the recorded rate
+  // File mode: process frames [first_frame, first_frame + frame_count) of the
+  // recording (0: to the end); odometry before first_frame still moves the
+  // pose. One recording can so be split into drives (map saved in between).
+  std::uint64_t first_frame = 0;
+  std::uint64_t frame_count = 0;
   RealtimeSettings realtime;
   ObservationGate gate;
   EngineConfig engine = ecu_engine_defaults();

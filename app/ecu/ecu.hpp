@@ -103,6 +103,10 @@ class Ecu final : private MatchSink {
   // End of a recording: commit what is still in flight (may send detections).
   void finish(Nanoseconds now) noexcept;
 
+  // The number the next frame gets (file mode: the recording's frame index,
+  // so that frames on the bus name frames of the recording).
+  void set_next_frame(FrameIndex index) noexcept { next_frame_ = index; }
+
   // Added to every stamp (live mode: CLOCK_REALTIME of the time base's zero,
   // so logs carry wall-clock time like candump's).
   void set_stamp_offset(Nanoseconds offset) noexcept { stamp_offset_ = offset; }

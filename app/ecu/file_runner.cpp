@@ -161,14 +161,18 @@ int run_file_mode(const RunOptions& options) {
   };
 
   const nanoseconds wall_start = platform::monotonic_now();
+  // --realtime paces from the first processed frame.
+  const nanoseconds first_time = frame_time(config.first_frame, format);
+  nanoseconds pace_start = wall_start;  // reset at the first processed frame
   int stop_signal = 0;
   int exit_status = 0;
   nanoseconds last_time{0};
   for (std::uint64_t k = 0;; ++k) {
     const nanoseconds t = frame_time(k, format);
-    if (config.realtime_replay) {
+    if (config.realtime_replay && k >= config.first_frame) {
+      if (k == config.first_frame) pace_start = platform::monotonic_now();
       // Sleep to the frame's absolute deadline; a signal ends the wait.
-      (void)platform::arm_timer_absolute(pacing_timer.get(), wall_start + t, nanoseconds(0));
+      (void)platform::arm_timer_absolute(pacing_timer.get(), pace_start + t - first_time, nanoseconds(0));
       std::uint64_t expirations = 0;
       while (expirations == 0 && stop_signal == 0) {
         pollfd fds[2] = {{signals.get(), POLLIN, 0}, {pacing_timer.get(), POLLIN, 0}};
@@ -189,11 +193,14 @@ int run_file_mode(const RunOptions& options) {
       break;
     }
     last_time = t;
+    if (k < config.first_frame) continue;  // before this drive: only the odometry counts
+    if (config.frame_count > 0 && k >= config.first_frame + config.frame_count) break;
     const auto arrival = SteadyClock::now();
-    if (config.realtime_replay && platform::monotonic_now() - (wall_start + t) > period) {
+    if (config.realtime_replay && platform::monotonic_now() - (pace_start + t - first_time) > period) {
       ecu.count_dropped_frames(1);  // we are a frame behind: skip, count, keep going
       continue;
     }
+    ecu.set_next_frame(static_cast<FrameIndex>(k));
     detections_csv.write(k, ecu.on_frame(grey, t, arrival));
     if ((stop_signal = detail::pending_stop_signal(signals.get())) != 0) break;
   }

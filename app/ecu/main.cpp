@@ -36,6 +36,8 @@ Options (each overrides the same setting of the configuration file):
                          command (map.file)
   --detections-out FILE  CSV of every detection (detections_out)
   --realtime             file mode: pace frames to the recorded rate
+  --first-frame N        file mode: start processing at frame N (file.first_frame)
+  --frames N             file mode: process N frames (file.frames)
   --k N                  sequence length (engine.k)
   --set KEY=VALUE        any configuration key
   --summary FILE         write the run's figures as JSON
@@ -91,6 +93,8 @@ int main(int argc, char** argv) {
     else if (arg == "--map") set("map.file", value);
     else if (arg == "--detections-out") set("detections_out", value);
     else if (arg == "--k") set("engine.k", value);
+    else if (arg == "--first-frame") set("file.first_frame", value);
+    else if (arg == "--frames") set("file.frames", value);
     else if (arg == "--summary") options.summary_json = value;
     else if (arg == "--set") {
       const char* equals = std::strchr(value, '=');
