@@ -392,12 +392,11 @@ void Renderer::paint_strip(const Pose2& local, const Strip& strip, const Pose2& 
       if (std::isnan(gx)) continue;
       const float dx = gx - lx, dy = ground_y_[i] - ly;
       const float a = c * dx + s * dy, b = -s * dx + c * dy;
-      const float fa = std::abs(c) * footprint_x_[i] + std::abs(s) * footprint_y_[i];
       const float fb = std::abs(s) * footprint_x_[i] + std::abs(c) * footprint_y_[i];
-      const float ca = std::clamp((hl - std::abs(a)) / fa + 0.5F, 0.0F, 1.0F);
-      if (ca <= 0.0F) continue;
-      const float cb = std::clamp((hw - std::abs(b)) / fb + 0.5F, 0.0F, 1.0F);
-      const float cover = ca * cb;
+      // Strips abut end to end: a hard edge along them leaves no seam
+      // between neighbours; across, the edge is antialiased.
+      if (std::abs(a) > hl) continue;
+      const float cover = std::clamp((hw - std::abs(b)) / fb + 0.5F, 0.0F, 1.0F);
       if (cover <= 0.0F) continue;
       if (road) {
         road_[i] = std::max(road_[i], cover);

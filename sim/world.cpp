@@ -146,7 +146,12 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
           for (const std::uint32_t j : it->second) {
             if (static_cast<double>(i - j) * kStep < kMinGap) continue;
             const Pose2& q = poses[j];
-            if (std::hypot(p.x - q.x, p.y - q.y) < config.revisit_radius_m &&
+            // Covered by the earlier metre of road: beside it (within the
+            // radius), not before or after it.
+            const double ex = p.x - q.x, ey = p.y - q.y;
+            const double along = ex * std::cos(q.yaw) + ey * std::sin(q.yaw);
+            const double across = -ex * std::sin(q.yaw) + ey * std::cos(q.yaw);
+            if (std::abs(along) <= 0.6 * kStep && std::abs(across) < config.revisit_radius_m &&
                 std::cos(wrap_angle(p.yaw - q.yaw)) > std::cos(kPi / 4)) {
               revisit[i] = 1;
               break;
@@ -177,7 +182,8 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
     const double half = kStep / 2 + 0.05;  // overlap: no seams on curves
     // Road surface in 2 m pieces (fewer, larger boxes to draw).
     if (i % 2 == 0 && (i + 1 >= samples || !revisit[i + 1]))
-      strip_at(road.at(s + kStep / 2), (lanes - 1) * w / 2, kStep + 0.05, lanes * w / 2 + 0.6,
+      // 0.2 m overlap each end: no notches at the outside of tight corners.
+      strip_at(road.at(s + kStep / 2), (lanes - 1) * w / 2, kStep + 0.2, lanes * w / 2 + 0.6,
                StripKind::kRoad);
     else if (i % 2 == 0 || (i > 0 && revisit[i - 1]))
       strip_at(p, (lanes - 1) * w / 2, half, lanes * w / 2 + 0.6, StripKind::kRoad);
@@ -392,7 +398,7 @@ std::optional<Scenario> make_scenario(std::string_view name, std::uint64_t seed,
     add_arc(s.road, 0, -150, 150, kPi / 2, -1.5 * kPi);
     s.laps = 2;
   } else if (name == "long") {
-    s.description = "a 6 km block driven ten times (60 km)";
+    s.description = "a 6 km block driven in laps (10 by default: 60 km)";
     s.road = rounded_rectangle(2000, 1000, 30);
     s.laps = 10;
   } else if (name == "grid" || name == "two-days") {
@@ -403,7 +409,7 @@ std::optional<Scenario> make_scenario(std::string_view name, std::uint64_t seed,
     if (name == "grid") {
       s.description = "a 2.3 km tour of look-alike city blocks, streets driven up to 3 times";
     } else {
-      s.description = "the city tour driven on two days (day, then dusk in the wet)";
+      s.description = "the city tour driven on two days (by day, then at dusk)";
       s.laps = 2;
       s.days = 2;
     }
