@@ -522,9 +522,12 @@ void Renderer::render(const Pose2& pose, double speed_mps, double time_s,
     albedo_[i] = albedo;
     float l = base_light_[i];
     if (cast_shadows) {
-      const float n = 0.7F * noise_(wx * 0.25 + 317.5, wy * 0.25 + 421.5) +
-                      0.3F * noise_(wx * 0.9 + 619.5, wy * 0.9 + 127.5);
-      l *= 1.0F - 0.55F * smoothstep(0.64F, 0.7F, n);
+      // Crowns 4 m across; ragged edges only where a pixel is small enough.
+      float n = noise_(wx * 0.25 + 317.5, wy * 0.25 + 421.5);
+      if (n > 0.55F) {
+        if (fine > 0.0F) n += 0.12F * fine * (noise_(wx * 0.9 + 619.5, wy * 0.9 + 127.5) - 0.5F);
+        l *= 1.0F - 0.55F * smoothstep(0.66F, 0.71F, n);
+      }
     }
     light_[i] = l;
   }
