@@ -1,5 +1,6 @@
 #include "sim/recorder.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <ctime>
 #include <cmath>
@@ -56,9 +57,12 @@ double thread_cpu_seconds() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
+// The true pose at time t, as Drive computes it; held at the end of the
+// drive (a route does not wrap round to its start).
 Pose2 truth_at(const Scenario& scenario, double speed, double t) {
   const double lap = scenario.road.length();
-  return scenario.road.at(std::fmod(speed * t, lap));
+  const double end = lap * scenario.laps - 1e-6;
+  return scenario.road.at(std::fmod(std::clamp(speed * t, 0.0, end), lap));
 }
 
 // Ground frame (x ahead, y left) to the camera-style world of the paper's

@@ -276,3 +276,27 @@ TEST_CASE("the training set has the real dataset's annotation format") {
   CHECK(std::filesystem::exists(dir / "images" / "000003.png"));
   CHECK(std::filesystem::exists(dir / "camera.yaml"));
 }
+
+TEST_CASE("markings behind a vehicle ahead are not listed as visible") {
+  const auto scenario = make_scenario("grid", 2);
+  Renderer renderer(camera(), *scenario);
+  std::vector<VisibleMarking> clear, hidden;
+  int compared = 0;
+  for (double s = 20.0; s < 2000.0; s += 7.0) {
+    const Pose2 pose = scenario->road.at(s);
+    renderer.visible_markings(pose, 3.0, 25.0, {}, clear);
+    for (const VisibleMarking& v : clear) {
+      if (v.ahead_m < 10.0) continue;
+      // A car half way to the marking, in line with it, hides it.
+      const auto& m = scenario->markings[v.id];
+      const Pose2 local = compose(inverse(pose), Pose2{m.x, m.y, 0.0});
+      const Occluder car{v.ahead_m / 2, local.y / 2, 1.8, 1.5};
+      renderer.visible_markings(pose, 3.0, 25.0, std::span<const Occluder>(&car, 1), hidden);
+      bool listed = false;
+      for (const VisibleMarking& h : hidden) listed = listed || h.id == v.id;
+      CHECK_FALSE(listed);
+      ++compared;
+    }
+  }
+  CHECK(compared > 10);
+}
