@@ -60,6 +60,9 @@ options:
   --no-shadows      no tree or building shadows
   --occluders P     share of 12 s windows with a vehicle ahead; default 0.3
   --noise SIGMA     sensor noise in grey levels; default 2
+  --drift X         scale of the odometry errors (wheel-speed scale error,
+                    yaw-rate bias and noise) behind the dead-reckoned pose's
+                    drift; 0 = perfect odometry; default 1
   --class-weights LIST  NAME=W,... relative frequency of the marking classes
   --no-render       no frames.y4m / visible.csv (fast, for long drives)
   --max-frames N    stop after N frames
@@ -99,6 +102,7 @@ int drive(int argc, char** argv) {
   std::optional<double> speed;
   std::optional<unsigned> laps;
   WorldConfig world;
+  double drift = 1.0;
   for (int i = 2; i < argc; ++i) {
     const std::string_view arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -121,6 +125,7 @@ int drive(int argc, char** argv) {
     else if (arg == "--occluders") options.conditions.occluder_probability = parse_number(arg, value);
     else if (arg == "--noise") options.conditions.noise_sigma = parse_number(arg, value);
     else if (arg == "--wear") options.conditions.paint_wear = parse_number(arg, value);
+    else if (arg == "--drift") drift = parse_number(arg, value);
     else if (arg == "--light") {
       const auto light = illumination_from_name(value);
       if (!light) fail(std::string("--light: unknown '") + value + "' (day, dusk, night, wet-glare)");
@@ -144,6 +149,15 @@ int drive(int argc, char** argv) {
     fail("--occluders must be in 0..1");
   if (options.conditions.noise_sigma < 0 || options.conditions.noise_sigma > 100)
     fail("--noise must be in 0..100");
+  if (drift < 0 || drift > 100) fail("--drift must be in 0..100");
+  // The same errors drive the CAN odometry and the legacy dead-reckoned pose.
+  options.drive.speed_scale_error *= drift;
+  options.drive.yaw_rate_bias_dps *= drift;
+  options.drive.yaw_rate_noise_dps *= drift;
+  options.odometry.speed_scale_error *= drift;
+  options.odometry.speed_noise_mps *= drift;
+  options.odometry.yaw_rate_bias_dps *= drift;
+  options.odometry.yaw_rate_noise_dps *= drift;
 
   std::optional<Scenario> scenario;
   if (!route_file.empty()) {

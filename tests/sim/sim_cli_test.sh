@@ -26,6 +26,7 @@ check "unknown scenario" 2 "unknown scenario 'moon'" -- "$sim" drive --scenario 
 check "both" 2 "not both" -- "$sim" drive --scenario loop --route r --out "$work/x"
 check "bad light" 2 "--light: unknown 'noon'" -- "$sim" drive --light noon --out "$work/x"
 check "bad weights" 2 "--class-weights: unknown marking class 'cat'" -- "$sim" drive --class-weights cat=1 --out "$work/x"
+check "bad drift" 2 "--drift must be in 0..100" -- "$sim" drive --drift -1 --out "$work/x"
 check "bad seed" 2 "--seed: not a whole number" -- "$sim" drive --seed 1.5 --out "$work/x"
 check "missing route" 2 "$work/none.txt: cannot open" -- "$sim" drive --route "$work/none.txt" --out "$work/x"
 printf '1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 oops\n' >"$work/bad.txt"
