@@ -68,6 +68,8 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   }
   const std::size_t pixels = static_cast<std::size_t>(rows) * cols;
   pixel_labels_.assign(pixels, -1);
+  run_above_.assign(pixels, 0);
+  run_below_.assign(pixels, 0);
   // 8-connected labelling gives at most one provisional label per two pixels
   // of a row, plus one.
   const std::size_t max_labels = static_cast<std::size_t>(rows) * ((cols + 1) / 2 + 1);
@@ -89,6 +91,7 @@ std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
   }
   birdseye_.warp(grey, bev_);
   threshold();
+  cut_line_junctions();
   const std::size_t part_count = label_parts();
   group_parts(part_count);
   for (std::size_t i = 0; i < candidate_count_; ++i) {
@@ -128,8 +131,12 @@ void MarkingDetector::threshold() {
     }
   }
   const int half_r = window_rows_ / 2, half_c = window_cols_ / 2;
-  const float ratio = config_.min_contrast_ratio;
-  const float contrast = static_cast<float>(config_.min_contrast);
+  // Paint: value > mean + max(contrast, ratio * mean), in integers scaled by
+  // the window's valid-pixel count and 256 (no division per pixel; window
+  // sums stay below 2^31: 255 * 256 * count, count < 2^15).
+  const std::int32_t ratio_q8 =
+      static_cast<std::int32_t>(std::lround(config_.min_contrast_ratio * 256.0f));
+  const std::int32_t contrast_q8 = config_.min_contrast * 256;
   const cv::Mat& valid = birdseye_.valid();
   for (int r = 0; r < rows; ++r) {
     const int r0 = std::max(0, r - half_r), r1 = std::min(rows, r + half_r + 1);
@@ -141,13 +148,69 @@ void MarkingDetector::threshold() {
     const std::uint8_t* v = valid.ptr<std::uint8_t>(r);
     std::uint8_t* out = mask_.ptr<std::uint8_t>(r);
     for (int c = 0; c < cols; ++c) {
-      out[c] = 0;
-      if (v[c] == 0) continue;
       const int c0 = std::max(0, c - half_c), c1 = std::min(cols, c + half_c + 1);
       const std::int32_t count = count_bottom[c1] - count_bottom[c0] - count_top[c1] + count_top[c0];
       const std::int32_t sum = sum_bottom[c1] - sum_bottom[c0] - sum_top[c1] + sum_top[c0];
-      const float mean = static_cast<float>(sum) / static_cast<float>(std::max(count, 1));
-      if (static_cast<float>(in[c]) > mean + std::max(contrast, ratio * mean)) out[c] = 255;
+      const std::int32_t margin = std::max(contrast_q8 * count, ratio_q8 * sum);
+      const bool paint = v[c] != 0 && in[c] * count * 256 > sum * 256 + margin;
+      out[c] = paint ? 255 : 0;
+    }
+  }
+}
+
+void MarkingDetector::cut_line_junctions() {
+  const int rows = mask_.rows, cols = mask_.cols;
+  const int along = std::max(2, static_cast<int>(std::lround(config_.junction_along_m / config_.region.x_step_m)));
+  const int across = std::max(2, static_cast<int>(std::lround(config_.junction_across_m / config_.region.y_step_m)));
+  // Vertical run lengths, saturating (int16): from above, then from below.
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
+    std::int16_t* here = run_above_.data() + static_cast<std::size_t>(r) * cols;
+    const std::int16_t* up = r > 0 ? here - cols : nullptr;
+    for (int c = 0; c < cols; ++c)
+      here[c] = m[c] == 0 ? 0 : static_cast<std::int16_t>(std::min(up ? up[c] + 1 : 1, 30000));
+  }
+  for (int r = rows - 1; r >= 0; --r) {
+    const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
+    std::int16_t* here = run_below_.data() + static_cast<std::size_t>(r) * cols;
+    const std::int16_t* down = r + 1 < rows ? here + cols : nullptr;
+    for (int c = 0; c < cols; ++c)
+      here[c] = m[c] == 0 ? 0 : static_cast<std::int16_t>(std::min(down ? down[c] + 1 : 1, 30000));
+  }
+  // Junction pixels: on a long vertical run and on a long horizontal run.
+  // They are marked in run_below_ (as -1) first and cleared with their
+  // 8-neighbours afterwards, so that no diagonal contact survives.
+  bool any = false;
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
+    const std::int16_t* above = run_above_.data() + static_cast<std::size_t>(r) * cols;
+    std::int16_t* below = run_below_.data() + static_cast<std::size_t>(r) * cols;
+    int c = 0;
+    while (c < cols) {
+      if (m[c] == 0) {
+        ++c;
+        continue;
+      }
+      int end = c;
+      while (end < cols && m[end] != 0) ++end;
+      if (end - c >= across)
+        for (int k = c; k < end; ++k)
+          if (above[k] + below[k] - 1 >= along) {
+            below[k] = -1;
+            any = true;
+          }
+      c = end;
+    }
+  }
+  if (!any) return;
+  for (int r = 0; r < rows; ++r) {
+    const std::int16_t* below = run_below_.data() + static_cast<std::size_t>(r) * cols;
+    for (int c = 0; c < cols; ++c) {
+      if (below[c] != -1) continue;
+      for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr) {
+        std::uint8_t* m = mask_.ptr<std::uint8_t>(rr);
+        for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc) m[cc] = 0;
+      }
     }
   }
 }

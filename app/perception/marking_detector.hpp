@@ -57,12 +57,17 @@ struct DetectorConfig {
   // apart likewise: both sides over sparse_min_size_m, paint under sparse_max_fill.
   float sparse_min_size_m = 2.0f;
   float sparse_max_fill = 0.15f;
+  // Where a line along the road (paint run >= junction_along_m) crosses
+  // paint across the road (run >= junction_across_m), e.g. a stop line
+  // meeting a lane line, the crossing is cut so the two come apart.
+  float junction_along_m = 2.0f;
+  float junction_across_m = 1.5f;
   // Parts whose boxes come closer than this (along, across the road) form one
   // marking; only parts up to group_max_part_m either way are grouped
   // (letters, digits, stripes): arrows are whole already, and lines and
   // kerbs must not swallow the markings next to them.
   float group_gap_along_m = 0.6f;
-  float group_gap_across_m = 0.6f;
+  float group_gap_across_m = 0.35f;
   float group_max_part_m = 3.2f;
   float max_marking_length_m = 9.0f;  // larger groups are not markings (cars, shadows' edges)
   float max_marking_width_m = 9.0f;
@@ -134,6 +139,7 @@ class MarkingDetector {
   };
 
   void threshold();
+  void cut_line_junctions();
   std::size_t label_parts();
   void group_parts(std::size_t part_count);
   void classify(Candidate& candidate);
@@ -149,6 +155,8 @@ class MarkingDetector {
   cv::Mat mask_;      // CV_8UC1 paint mask
   cv::Mat integral_;        // CV_32SC1 (rows+1) x (cols+1): bird's-eye sums
   cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (fixed)
+  std::vector<std::int16_t> run_above_;     // paint run length down to each pixel
+  std::vector<std::int16_t> run_below_;     // ... and from it downwards
   std::vector<std::int32_t> pixel_labels_;  // provisional label per pixel, -1 none
   std::vector<std::int32_t> parent_;        // union-find over provisional labels
   std::vector<Part> label_box_;             // box and area per provisional label

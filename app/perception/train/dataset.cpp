@@ -72,6 +72,61 @@ bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& image
   return true;
 }
 
+bool load_drive_annotations(const std::string& dir, int step, std::vector<AnnotatedImage>& images,
+                            std::string& error) {
+  const std::string path = dir + "/visible.csv";
+  std::ifstream in(path);
+  if (!in) {
+    error = path + ": cannot open";
+    return false;
+  }
+  std::string line;
+  int line_number = 1;
+  if (!std::getline(in, line) || line.rfind("frame,id,class,x1", 0) != 0) {
+    error = path + ":1: header must be frame,id,class,x1,y1,...,x4,y4";
+    return false;
+  }
+  std::map<long, AnnotatedImage> by_frame;
+  long last_frame = -1;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty()) continue;
+    std::vector<std::string> fields;
+    std::stringstream ss(line);
+    std::string field;
+    while (std::getline(ss, field, ',')) fields.push_back(field);
+    const auto fail = [&](const std::string& what) {
+      error = path + ":" + std::to_string(line_number) + ": " + what;
+      return false;
+    };
+    if (fields.size() != 11) return fail("expected 11 fields, found " + std::to_string(fields.size()));
+    char* end = nullptr;
+    const long frame = std::strtol(fields[0].c_str(), &end, 10);
+    if (end == fields[0].c_str() || *end != '\0' || frame < 0 || frame > 100000000)
+      return fail("bad frame number '" + fields[0] + "'");
+    last_frame = std::max(last_frame, frame);
+    if (frame % step != 0) continue;
+    Annotation a;
+    a.label = fields[2];
+    for (int i = 0; i < 8; ++i) {
+      const double v = std::strtod(fields[3 + i].c_str(), &end);
+      if (end == fields[3 + i].c_str() || *end != '\0' || !std::isfinite(v) || v < -1e5 || v > 1e5)
+        return fail("coordinate " + std::to_string(i + 1) + " is not a number: '" + fields[3 + i] + "'");
+      a.quad[i / 2][i % 2] = static_cast<float>(v);
+    }
+    AnnotatedImage& image = by_frame[frame];
+    image.name = std::to_string(frame);
+    image.annotations.push_back(a);
+  }
+  // Frames without visible markings count too (false detections).
+  for (long f = 0; f <= last_frame; f += step)
+    if (by_frame.find(f) == by_frame.end()) by_frame[f].name = std::to_string(f);
+  images.clear();
+  for (auto& [frame, image] : by_frame) images.push_back(std::move(image));
+  return true;
+}
+
 int clip_of(const std::string& name) {
   const auto underscore = name.rfind('_');
   const std::size_t start = underscore == std::string::npos ? 0 : underscore + 1;

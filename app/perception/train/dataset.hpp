@@ -16,13 +16,20 @@ struct Annotation {
 };
 
 struct AnnotatedImage {
-  std::string name;  // file name under images/
+  std::string name;  // file name under images/, or the frame number of a drive
   std::vector<Annotation> annotations;
+  std::vector<bool> in_range;  // per annotation: wholly inside the detector's region
 };
 
 // Images in file-name order. False with `error` = "FILE:LINE: what is wrong".
 bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images,
                       std::string& error);
+
+// A simulator drive (markloop-sim drive): DIR/visible.csv
+// (`frame,id,class,x1,y1,...,x4,y4`) as annotations of every `step`-th frame
+// of DIR/frames.y4m; names are frame numbers.
+bool load_drive_annotations(const std::string& dir, int step, std::vector<AnnotatedImage>& images,
+                            std::string& error);
 
 // The dataset's clips: frames come in blocks of 60 consecutive numbers
 // (roadmark_NNNN.jpg -> (NNNN - 1) / 60); -1 when the name has no number.

@@ -26,6 +26,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "cli/cli.hpp"
+#include "io/y4m.hpp"
 #include "perception/camera_model.hpp"
 #include "perception/marking_classes.hpp"
 #include "perception/marking_classifier.hpp"
@@ -49,6 +50,8 @@ constexpr const char* kUsage =
     "  --sim DIR           simulator training set (markloop-sim training-set), with\n"
     "                      DIR/camera.yaml; repeatable\n"
     "  --sim-test DIR      simulator set held apart: only evaluated; repeatable\n"
+    "  --sim-drive DIR     simulator drive (markloop-sim drive: visible.csv, frames.y4m)\n"
+    "                      held apart: every 5th frame evaluated; repeatable\n"
     "  --folds N           cross-validation by clip on the real images (default 4; 0: none):\n"
     "                      clip c (60-frame block) is validated in fold c mod N by a model\n"
     "                      trained without it\n"
@@ -102,12 +105,17 @@ bool inside(const std::array<std::array<float, 2>, 4>& quad, float x, float y) {
   return cv::pointPolygonTest(poly, cv::Point2f(x, y), false) >= 0;
 }
 
-ImageSet extract(const std::string& dir, const std::string& camera_path, bool real) {
+constexpr int kDriveStep = 5;  // every 5th frame of a drive: 2 per second at 10 fps
+
+ImageSet extract(const std::string& dir, const std::string& camera_path, bool real,
+                 bool drive = false) {
   ImageSet set;
   set.dir = dir;
   set.real = real;
   std::string error;
-  if (!train::load_annotations(dir, set.images, error)) fail(error);
+  if (drive ? !train::load_drive_annotations(dir, kDriveStep, set.images, error)
+            : !train::load_annotations(dir, set.images, error))
+    fail(error);
   const auto camera = load_camera_model(camera_path, error);
   if (!camera) fail(error);
   DetectorConfig config;
@@ -118,10 +126,36 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   cv::Mat flipped_bev, flipped_mask;
   int flipped_for = -1;
   int loaded = 0;
+  markloop::io::Y4mReader video;
+  long video_frame = -1;
+  cv::Mat video_grey(camera->height(), camera->width(), CV_8UC1);
+  if (drive && !video.open(dir + "/frames.y4m")) fail(video.error());
+  const auto& region = config.region;
   for (std::size_t i = 0; i < set.images.size(); ++i) {
-    const auto& image = set.images[i];
-    const std::string path = dir + "/images/" + image.name;
-    cv::Mat grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    auto& image = set.images[i];
+    // In range: every corner on the road inside the detector's region.
+    for (const auto& a : image.annotations) {
+      bool in = true;
+      for (const auto& p : a.quad) {
+        Eigen::Vector2d g;
+        in = in && camera->image_to_ground({p[0], p[1]}, g) && g.x() >= region.x_near_m &&
+             g.x() <= region.x_far_m && g.y() <= region.y_left_m && g.y() >= region.y_right_m;
+      }
+      image.in_range.push_back(in);
+    }
+    const std::string path = drive ? dir + "/frames.y4m#" + image.name : dir + "/images/" + image.name;
+    cv::Mat grey;
+    if (drive) {
+      const long wanted = std::stol(image.name);
+      while (video_frame < wanted) {
+        if (video.read_frame({video_grey.data, video_grey.total()}) != markloop::io::Y4mRead::kFrame)
+          fail(path + ": frame missing from the video (" + video.error() + ")");
+        ++video_frame;
+      }
+      grey = video_grey;
+    } else {
+      grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    }
     if (grey.empty()) fail(path + ": cannot read the image");
     if (grey.cols != camera->width() || grey.rows != camera->height())
       fail(path + ": image is " + std::to_string(grey.cols) + "x" + std::to_string(grey.rows) +
@@ -151,7 +185,8 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
         break;
       }
       set.samples.push_back(s);
-      if (s.label < 0) continue;
+      // The simulator varies its markings itself; the few real clips need help.
+      if (s.label < 0 || !real) continue;
       // Shifted and scaled boxes, as the detector would cut them on another
       // frame; markings get more copies than the plentiful rejects.
       const int copies = s.label == kRejectClass ? 1 : kJitters;
@@ -331,8 +366,10 @@ Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& option
 // detections on annotations of unknown classes are not judged.
 struct Score {
   std::map<std::string, int> annotated, found, detected, correct;
+  std::map<std::string, int> annotated_in_range, found_in_range;
   std::map<std::string, int> confusion;  // "annotated -> predicted" for missed markings
   int duplicates = 0;
+  int unjudged = 0;
   int wrong_label = 0;
   int on_nothing = 0;
 };
@@ -342,11 +379,21 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
            Score& score) {
   const auto& image = set.images[image_index];
   std::vector<bool> matched(image.annotations.size(), false);
-  for (const auto& a : image.annotations)
-    if (marking_class_from_name(a.label)) ++score.annotated[a.label];
+  for (std::size_t a = 0; a < image.annotations.size(); ++a) {
+    const std::string& label = image.annotations[a].label;
+    if (!marking_class_from_name(label)) continue;
+    ++score.annotated[label];
+    if (image.in_range[a]) ++score.annotated_in_range[label];
+  }
   for (std::size_t i = 0; i < detections.size(); ++i) {
     if (predicted[i] == kRejectClass || scores[i] < min_score) continue;
     const std::string label(marking_class_name(static_cast<markloop::Label>(predicted[i])));
+    // The real dataset does not annotate stop lines and crosswalks: such
+    // detections on its images can be judged neither right nor wrong.
+    if (set.real && (label == "stopline" || label == "crosswalk")) {
+      ++score.unjudged;
+      continue;
+    }
     const Sample& s = *detections[i];
     int hit = -1;
     for (std::size_t a = 0; a < image.annotations.size(); ++a)
@@ -364,6 +411,7 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
       ++score.detected[label];
       ++score.correct[label];
       ++score.found[label];
+      if (image.in_range[hit]) ++score.found_in_range[label];
       continue;
     }
     ++score.detected[label];
@@ -388,9 +436,9 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
 
 void print_score(const char* title, const Score& score, bool main_only_total) {
   std::printf("\n%s\n", title);
-  std::printf("%-14s %10s %7s %8s %10s %7s %9s\n", "class", "annotated", "found", "recall",
-              "detected", "right", "precision");
-  int ta = 0, tf = 0, td = 0, tc = 0;
+  std::printf("%-14s %10s %7s %8s %10s %7s %9s %9s %7s %8s\n", "class", "annotated", "found",
+              "recall", "detected", "right", "precision", "in range", "found", "recall");
+  int ta = 0, tf = 0, td = 0, tc = 0, tar = 0, tfr = 0;
   for (std::string_view name : kMarkingClassNames) {
     const std::string key(name);
     const auto get = [&](const std::map<std::string, int>& m) {
@@ -398,24 +446,28 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
       return it == m.end() ? 0 : it->second;
     };
     const int a = get(score.annotated), f = get(score.found), d = get(score.detected),
-              c = get(score.correct);
+              c = get(score.correct), ar = get(score.annotated_in_range),
+              fr = get(score.found_in_range);
     if (a == 0 && d == 0) continue;
     const bool main = std::find(kMainClasses.begin(), kMainClasses.end(), name) != kMainClasses.end();
-    std::printf("%-14s %10d %7d %7.1f%% %10d %7d %8.1f%%%s\n", key.c_str(), a, f,
-                a ? 100.0 * f / a : 0.0, d, c, d ? 100.0 * c / d : 0.0,
-                main_only_total && !main ? "  (not a main class)" : "");
+    std::printf("%-14s %10d %7d %7.1f%% %10d %7d %8.1f%% %9d %7d %7.1f%%%s\n", key.c_str(), a, f,
+                a ? 100.0 * f / a : 0.0, d, c, d ? 100.0 * c / d : 0.0, ar, fr,
+                ar ? 100.0 * fr / ar : 0.0, main_only_total && !main ? "  (not a main class)" : "");
     if (!main_only_total || main) {
       ta += a;
       tf += f;
       td += d;
       tc += c;
+      tar += ar;
+      tfr += fr;
     }
   }
-  std::printf("%-14s %10d %7d %7.1f%% %10d %7d %8.1f%%\n",
+  std::printf("%-14s %10d %7d %7.1f%% %10d %7d %8.1f%% %9d %7d %7.1f%%\n",
               main_only_total ? "main classes" : "all", ta, tf, ta ? 100.0 * tf / ta : 0.0, td, tc,
-              td ? 100.0 * tc / td : 0.0);
-  std::printf("duplicates %d, wrong label %d, detections on no marking %d\n", score.duplicates,
-              score.wrong_label, score.on_nothing);
+              td ? 100.0 * tc / td : 0.0, tar, tfr, tar ? 100.0 * tfr / tar : 0.0);
+  std::printf("duplicates %d, wrong label %d, detections on no marking %d%s\n", score.duplicates,
+              score.wrong_label, score.on_nothing,
+              score.unjudged ? (", stop line/crosswalk (not annotated) " + std::to_string(score.unjudged)).c_str() : "");
   if (std::getenv("MARKLOOP_TRAIN_SHOW_MISSES") != nullptr)
     for (const auto& [what, n] : score.confusion) std::printf("  missed: %-30s %d\n", what.c_str(), n);
 }
@@ -478,8 +530,10 @@ void write_model(const Mlp& m, const std::string& path, const std::string& comma
                  std::size_t samples) {
   FILE* f = markloop::cli::open_output(path);
   std::fprintf(f,
-               "// GENERATED by markloop-train: do not edit. Regenerate from the repository root\n"
-               "// (build/host built; the real images are not part of the repository):\n"
+               "// GENERATED by markloop-train: do not edit. Regenerate with\n"
+               "//   app/perception/train/train-model.sh\n"
+               "// from the repository root (build/host built; the real images are not part\n"
+               "// of the repository), which renders the simulator data and runs\n"
                "//   %s\n"
                "// %zu training candidates; %d inputs, %d hidden units (ReLU), %d outputs\n"
                "// (the marking classes of marking_classes.hpp, then reject).\n",
@@ -518,7 +572,7 @@ void write_model(const Mlp& m, const std::string& path, const std::string& comma
 int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-train";
   std::string real_dir, real_camera, out;
-  std::vector<std::string> sim_dirs, sim_test_dirs;
+  std::vector<std::string> sim_dirs, sim_test_dirs, sim_drive_dirs;
   int folds = 4;
   TrainOptions options;
   std::string command = "build/host/app/perception/train/markloop-train";
@@ -539,6 +593,8 @@ int main(int argc, char** argv) {
       sim_dirs.emplace_back(value);
     else if (arg == "--sim-test")
       sim_test_dirs.emplace_back(value);
+    else if (arg == "--sim-drive")
+      sim_drive_dirs.emplace_back(value);
     else if (arg == "--folds")
       folds = static_cast<int>(markloop::cli::parse_whole(arg, value));
     else if (arg == "--seed")
@@ -571,6 +627,8 @@ int main(int argc, char** argv) {
   for (const auto& dir : sim_dirs) sets.push_back(extract(dir, dir + "/camera.yaml", false));
   std::vector<ImageSet> tests;
   for (const auto& dir : sim_test_dirs) tests.push_back(extract(dir, dir + "/camera.yaml", false));
+  for (const auto& dir : sim_drive_dirs)
+    tests.push_back(extract(dir, dir + "/camera.yaml", false, true));
 
   const float min_score = DetectorConfig{}.min_score;
   const auto training = [&](int held_out_fold) {

@@ -1,0 +1,121 @@
+// Time per frame of MarkingDetector::detect() (capture excluded): frames are
+// read from a YUV4MPEG2 file (e.g. a simulator drive's frames.y4m) or, without
+// one, synthesised (a road with lane lines and legend-sized blocks). Prints a
+// table of the median, p90, p99 and maximum per frame, per stage total.
+// Single thread: run under `taskset -c N` to pin it to one core.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "cli/cli.hpp"
+#include "io/y4m.hpp"
+#include "perception/camera_model.hpp"
+#include "perception/marking_detector.hpp"
+#include "../perception/synthetic_road.hpp"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: markloop-detector-bench [--camera FILE] [--y4m FILE] [--frames N] [--skip N]\n"
+    "\n"
+    "Times MarkingDetector::detect() per frame and prints median, p90, p99 and\n"
+    "maximum. --y4m: frames from a file (mono or any YUV, luma used), else\n"
+    "synthetic frames of the camera's size. --camera: calibration (default: the\n"
+    "simulator's camera, 1280x512). --frames: frames timed (default 1000).\n"
+    "--skip: frames of the file skipped first (default 0).\n";
+
+double percentile(std::vector<double> v, double p) {
+  std::sort(v.begin(), v.end());
+  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size())));
+  return v[i];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace markloop::perception;
+  markloop::cli::program_name() = "markloop-detector-bench";
+  std::string camera_path, y4m_path;
+  unsigned frames = 1000, skip = 0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (i + 1 >= argc) markloop::cli::fail(arg + ": needs a value (see --help)");
+    const char* value = argv[++i];
+    if (arg == "--camera")
+      camera_path = value;
+    else if (arg == "--y4m")
+      y4m_path = value;
+    else if (arg == "--frames")
+      frames = markloop::cli::parse_whole(arg, value);
+    else if (arg == "--skip")
+      skip = markloop::cli::parse_whole(arg, value);
+    else
+      markloop::cli::fail("unknown option " + arg + " (see --help)");
+  }
+  if (frames == 0) markloop::cli::fail("--frames must be at least 1");
+  std::string error;
+  CameraModel camera = default_camera_model();
+  DetectorConfig config;
+  if (!camera_path.empty()) {
+    const auto loaded = load_camera_model(camera_path, error);
+    if (!loaded) markloop::cli::fail(error);
+    camera = *loaded;
+    if (!load_detector_config(camera_path, config, error)) markloop::cli::fail(error);
+  }
+  MarkingDetector detector(camera, config);
+
+  markloop::io::Y4mReader reader;
+  std::vector<cv::Mat> synthetic;
+  if (!y4m_path.empty()) {
+    if (!reader.open(y4m_path)) markloop::cli::fail(reader.error());
+    if (reader.format().width != camera.width() || reader.format().height != camera.height())
+      markloop::cli::fail(y4m_path + ": frames are " + std::to_string(reader.format().width) + "x" +
+                          std::to_string(reader.format().height) + ", the camera " +
+                          std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
+  } else {
+    using markloop::perception::testing::GroundRect;
+    for (int k = 0; k < 20; ++k) {
+      const double x = 20.0 - 0.8 * k;
+      synthetic.push_back(markloop::perception::testing::render_road(
+          camera, {{3.0, 25.0, 1.7, 1.85}, {3.0, 25.0, -1.85, -1.7}, {x, x + 2.4, 0.5, 1.0},
+                   {x, x + 2.4, -0.3, 0.2}, {x - 3, x - 0.5, -3.2, -2.4}, {x + 4, x + 4.4, -6, 6}}));
+    }
+  }
+  cv::Mat frame(camera.height(), camera.width(), CV_8UC1);
+  std::vector<double> ms;
+  ms.reserve(frames);
+  std::size_t detections = 0, candidates = 0;
+  for (unsigned i = 0; i < skip + frames; ++i) {
+    const cv::Mat* input = &frame;
+    if (!y4m_path.empty()) {
+      const auto r = reader.read_frame({frame.data, frame.total()});
+      if (r == markloop::io::Y4mRead::kError) markloop::cli::fail(reader.error());
+      if (r == markloop::io::Y4mRead::kEnd) break;
+      if (i < skip) continue;
+    } else {
+      input = &synthetic[i % synthetic.size()];
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    detections += detector.detect(*input).size();
+    const auto t1 = std::chrono::steady_clock::now();
+    candidates += detector.candidates().size();
+    ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+  }
+  if (ms.empty()) markloop::cli::fail("no frames timed");
+  std::printf("detect() on %dx%d frames (%s), bird's-eye %dx%d, %zu frames\n", camera.width(),
+              camera.height(), y4m_path.empty() ? "synthetic" : y4m_path.c_str(),
+              detector.birdseye().cols(), detector.birdseye().rows(), ms.size());
+  std::printf("| median | p90 | p99 | max | candidates/frame | detections/frame |\n");
+  std::printf("|---:|---:|---:|---:|---:|---:|\n");
+  std::printf("| %.3f ms | %.3f ms | %.3f ms | %.3f ms | %.1f | %.2f |\n", percentile(ms, 0.5),
+              percentile(ms, 0.9), percentile(ms, 0.99), percentile(ms, 1.0),
+              static_cast<double>(candidates) / static_cast<double>(ms.size()),
+              static_cast<double>(detections) / static_cast<double>(ms.size()));
+  return 0;
+}
