@@ -188,14 +188,18 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
                           ? std::min(scenario.days - 1, static_cast<int>(frame.estimate.t / lap_seconds))
                           : 0;
       const Conditions conditions = conditions_for_day(first_day, day);
+      const double car_s =
+          std::fmod(std::clamp(options.drive.speed_mps * frame.estimate.t, 0.0,
+                               scenario.road.length() * scenario.laps - 1e-6),
+                    scenario.road.length());
+      occluders_at(conditions, frame.estimate.t, scenario.road, car_s, frame.truth, 3.5, occluders);
       const double start = thread_cpu_seconds();
-      renderer->render(frame.truth, options.drive.speed_mps, frame.estimate.t, conditions, k, image);
+      renderer->render(frame.truth, options.drive.speed_mps, conditions, k, occluders, image);
       summary.render_seconds += thread_cpu_seconds() - start;
       if (!video.write_frame({image.data, image.total()})) {
         error = video.error();
         return false;
       }
-      occluders_at(conditions, frame.estimate.t, occluders);
       renderer->visible_markings(frame.truth, options.visible_near_m, options.visible_far_m,
                                  occluders, seen);
       for (const VisibleMarking& v : seen) write_quad_row(visible->get(), k, v, false);
@@ -291,15 +295,16 @@ bool record_training_set(const perception::CameraModel& camera, const TrainingSe
     // off the lane centre and turned a little, as real drivers are.
     Pose2 pose;
     for (int attempt = 0; attempt < 20; ++attempt) {
-      const Pose2 centre = scenario->road.at(length * unit(rng));
+      const double car_s = length * unit(rng);
+      const Pose2 centre = scenario->road.at(car_s);
       const double side = (unit(rng) - 0.5) * 1.0;
       pose = {centre.x - std::sin(centre.yaw) * side, centre.y + std::cos(centre.yaw) * side,
               wrap_angle(centre.yaw + (unit(rng) - 0.5) * 0.08)};
-      occluders_at(c, t, occluders);
+      occluders_at(c, t, scenario->road, car_s, pose, 3.5, occluders);
       renderer.visible_markings(pose, options.visible_near_m, options.visible_far_m, occluders, seen);
       if (!seen.empty()) break;
     }
-    renderer.render(pose, speed, t, c, k, image);
+    renderer.render(pose, speed, c, k, occluders, image);
     const std::filesystem::path png = dir / "images" / (std::to_string(1000000 + k).substr(1) + ".png");
     bool written = false;
     try {

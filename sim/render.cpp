@@ -212,7 +212,8 @@ std::string_view illumination_name(Illumination light) {
   return "?";
 }
 
-void occluders_at(const Conditions& conditions, double time_s, std::vector<Occluder>& out) {
+void occluders_at(const Conditions& conditions, double time_s, const Path& road, double car_s,
+                  const Pose2& pose, double lane_width_m, std::vector<Occluder>& out) {
   out.clear();
   constexpr double kWindow = 12.0;
   const auto window = static_cast<std::int64_t>(std::floor(time_s / kWindow));
@@ -222,9 +223,17 @@ void occluders_at(const Conditions& conditions, double time_s, std::vector<Occlu
   const double duration = 3.0 + 5.0 * unit_from_hash(hash_mix(h + 2));
   if (time_s < start || time_s > start + duration) return;
   const double phase = (time_s - start) / duration;
+  const double along = 8.0 + 10.0 * unit_from_hash(hash_mix(h + 3)) + 4.0 * std::sin(phase * kPi);
+  const double lane = (hash_mix(h + 4) & 1) != 0 ? lane_width_m : 0.0;
+  double s = car_s + along;
+  if (s > road.length()) s -= road.length();  // a closed lap goes on; a route's end holds
+  const Pose2 centre = road.at(s);
+  const Pose2 local = compose(inverse(pose), Pose2{centre.x - std::sin(centre.yaw) * lane,
+                                                   centre.y + std::cos(centre.yaw) * lane, 0.0});
+  if (local.x < 3.0) return;  // round a corner, behind the camera's view
   Occluder o;
-  o.ahead_m = 8.0 + 10.0 * unit_from_hash(hash_mix(h + 3)) + 4.0 * std::sin(phase * kPi);
-  o.left_m = (hash_mix(h + 4) & 1) != 0 ? 3.5 : 0.0;
+  o.ahead_m = local.x;
+  o.left_m = local.y;
   o.width_m = 1.7 + 0.3 * unit_from_hash(hash_mix(h + 5));
   o.height_m = 1.4 + 0.5 * unit_from_hash(hash_mix(h + 6));
   out.push_back(o);
@@ -256,7 +265,6 @@ Renderer::Renderer(const perception::CameraModel& camera, const Scenario& scenar
   for (int c = 0; c < width_; ++c)
     column_bearing_[static_cast<std::size_t>(c)] = static_cast<float>(std::atan((cx - c) / fx));
   shaded_.create(height_, width_, CV_32F);
-  occluders_.reserve(4);
   near_.reserve(1 << 16);
 }
 
@@ -458,8 +466,8 @@ void Renderer::paint_marking(const Pose2& local, const Marking& marking, const P
   }
 }
 
-void Renderer::render(const Pose2& pose, double speed_mps, double time_s,
-                      const Conditions& conditions, std::uint64_t frame, cv::Mat& image) {
+void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& conditions,
+                      std::uint64_t frame, std::span<const Occluder> occluders, cv::Mat& image) {
   ++counters_.frames;
   const Light light = light_of(conditions.light);
   const bool wet = conditions.light == Illumination::kWetGlare;
@@ -588,8 +596,7 @@ void Renderer::render(const Pose2& pose, double speed_mps, double time_s,
   }
 
   // 5. Vehicles ahead hide the road.
-  occluders_at(conditions, time_s, occluders_);
-  for (const Occluder& o : occluders_) {
+  for (const Occluder& o : occluders) {
     Eigen::Vector2d left, right;
     if (!camera_.ground_to_image({o.ahead_m, o.left_m + o.width_m / 2}, left) ||
         !camera_.ground_to_image({o.ahead_m, o.left_m - o.width_m / 2}, right))

@@ -48,8 +48,12 @@ struct Occluder {
   double width_m = 1.8;
   double height_m = 1.5;
 };
-// The vehicles ahead at time t (a deterministic schedule per seed).
-void occluders_at(const Conditions& conditions, double time_s, std::vector<Occluder>& out);
+// The vehicles ahead at time t (a deterministic schedule per seed), driving
+// on `road`: `along_m` ahead of the car's arc length `car_s` (wrapping round
+// a closed lap of `lap_m`), in the car's lane or the one to its left; placed
+// in the frame of the car at `pose`.
+void occluders_at(const Conditions& conditions, double time_s, const Path& road, double car_s,
+                  const Pose2& pose, double lane_width_m, std::vector<Occluder>& out);
 
 // A marking as it appears in one frame: corners in the order of the
 // roadmarks dataset (near-left, near-right, far-right, far-left, as seen in
@@ -77,8 +81,8 @@ class Renderer {
 
   // Draws the view from `pose` (true pose, world frame) into `image`
   // (CV_8UC1, camera size; allocated here only when it has another size).
-  void render(const Pose2& pose, double speed_mps, double time_s, const Conditions& conditions,
-              std::uint64_t frame, cv::Mat& image);
+  void render(const Pose2& pose, double speed_mps, const Conditions& conditions,
+              std::uint64_t frame, std::span<const Occluder> occluders, cv::Mat& image);
 
   // Markings whose whole footprint projects inside the image, whose centre
   // lies min_ahead..max_ahead metres in front and that no vehicle hides.
@@ -123,7 +127,6 @@ class Renderer {
   // Per frame.
   std::vector<float> road_, albedo_, light_;
   cv::Mat shaded_;  // CV_32F
-  std::vector<Occluder> occluders_;
   // Templates per class.
   std::array<Template, kClassCount> templates_;
   // Spatial index of the world: cell -> indices.

@@ -166,12 +166,16 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
     return revisit[std::min(i, samples - 1)] == 0;
   };
 
-  // 2. Road surface and lines, a metre at a time.
+  // 2. Road surface and lines, a metre at a time. On a curve a strip off
+  // the centre line spans a longer arc than its metre of route: lengthen it
+  // by the curvature so neighbours still overlap at their outer edges.
+  double curvature = 0.0;
   const auto strip_at = [&](const Pose2& p, double left, double half_length, double half_width,
                             StripKind kind) {
+    const double stretch = 1.0 + std::abs(curvature) * (std::abs(left) + half_width);
     scenario.strips.push_back({p.x - std::sin(p.yaw) * left, p.y + std::cos(p.yaw) * left, p.yaw,
-                               static_cast<float>(half_length), static_cast<float>(half_width),
-                               kind});
+                               static_cast<float>(half_length * stretch),
+                               static_cast<float>(half_width), kind});
   };
   constexpr double kLineHalfWidth = 0.075;
   constexpr double kDashPeriod = 12.0, kDashLength = 3.0;  // US practice: 3 m line, 9 m gap
@@ -179,11 +183,11 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
     if (revisit[i]) continue;
     const double s = (static_cast<double>(i) + 0.5) * kStep;
     const Pose2 p = road.at(s);
-    const double half = kStep / 2 + 0.05;  // overlap: no seams on curves
+    curvature = wrap_angle(road.at(s + kStep).yaw - road.at(s - kStep).yaw) / (2 * kStep);
+    const double half = kStep / 2 + 0.05;  // overlap: no seams
     // Road surface in 2 m pieces (fewer, larger boxes to draw).
     if (i % 2 == 0 && (i + 1 >= samples || !revisit[i + 1]))
-      // 0.2 m overlap each end: no notches at the outside of tight corners.
-      strip_at(road.at(s + kStep / 2), (lanes - 1) * w / 2, kStep + 0.2, lanes * w / 2 + 0.6,
+      strip_at(road.at(s + kStep / 2), (lanes - 1) * w / 2, kStep + 0.05, lanes * w / 2 + 0.6,
                StripKind::kRoad);
     else if (i % 2 == 0 || (i > 0 && revisit[i - 1]))
       strip_at(p, (lanes - 1) * w / 2, half, lanes * w / 2 + 0.6, StripKind::kRoad);

@@ -21,11 +21,15 @@ void BM_RenderFrame(benchmark::State& state) {
   conditions.light = static_cast<sim::Illumination>(state.range(0));
   conditions.occluder_probability = 1.0;
   cv::Mat image;
+  std::vector<sim::Occluder> occluders;
+  occluders.reserve(4);
   double s = 0.0;
   std::uint64_t frame = 0;
   for (auto _ : state) {
-    renderer.render(scenario->road.at(s), 10.0, 0.1 * static_cast<double>(frame), conditions,
-                    frame, image);
+    const Pose2 pose = scenario->road.at(s);
+    sim::occluders_at(conditions, 0.1 * static_cast<double>(frame), scenario->road, s, pose, 3.5,
+                      occluders);
+    renderer.render(pose, 10.0, conditions, frame, occluders, image);
     benchmark::DoNotOptimize(image.data);
     s = s + 1.0 < scenario->road.length() ? s + 1.0 : 0.0;
     ++frame;

@@ -201,10 +201,10 @@ TEST_CASE("a place looks the same and shows the same markings on every pass") {
   for (double s = 50.0; s < lap; s += 97.0) {
     const Pose2 pose = scenario->road.at(s);
     cv::Mat first, second;
-    renderer.render(pose, 10.0, 1.0, c, 1, first);
+    renderer.render(pose, 10.0, c, 1, {}, first);
     // The second lap's pose is computed from a lap later (same point).
     const Pose2 again = scenario->road.at(std::fmod(s + lap, lap));
-    renderer.render(again, 10.0, 200.0, c, 2000, second);
+    renderer.render(again, 10.0, c, 2000, {}, second);
     CHECK(cv::norm(first, second, cv::NORM_INF) == 0.0);
     std::vector<VisibleMarking> a, b;
     renderer.visible_markings(pose, 3.0, 25.0, {}, a);
@@ -236,7 +236,7 @@ TEST_CASE("rendered markings are where visible.csv says") {
     renderer.visible_markings(pose, 5.0, 15.0, {}, seen);
     if (seen.empty()) continue;
     cv::Mat image;
-    renderer.render(pose, 10.0, 0.0, c, 0, image);
+    renderer.render(pose, 10.0, c, 0, {}, image);
     for (const VisibleMarking& v : seen) {
       std::vector<cv::Point> quad;
       for (const auto& p : v.quad) quad.emplace_back(static_cast<int>(p[0]), static_cast<int>(p[1]));
