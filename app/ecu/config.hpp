@@ -46,12 +46,18 @@ struct ObservationGate {
   float max_range_m = 16.0f;
 };
 
-// The engine's settings for camera detections: a landmark needs 3 sightings
-// (the engine's default of 2 suits cleaner inputs such as the paper's data;
-// single-frame clutter from the camera then stays out of the sequences).
+// The engine's settings in the car: a landmark needs 3 sightings (the
+// engine's default of 2 suits cleaner inputs such as the paper's data;
+// single-frame clutter from the camera then stays out of the sequences), and
+// the odometry prior rejects look-alike places: within a session two visits
+// may lie apart by at most 5 m + 2 % of the distance driven in between, and
+// places of a loaded map count once a second match confirms how the two
+// sessions' frames relate.
 inline EngineConfig ecu_engine_defaults() {
   EngineConfig c;
   c.tracker.min_observations = 3;
+  c.match.max_drift_rel = 0.02;
+  c.match.confirm_loaded_places = true;
   return c;
 }
 

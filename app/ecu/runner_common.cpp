@@ -104,6 +104,16 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                  (unsigned long long)d.parts, (unsigned long long)d.lane_lines,
                  (unsigned long long)d.candidates, (unsigned long long)d.rejected,
                  (unsigned long long)d.low_score, (unsigned long long)d.bad_frames);
+    const EngineCounters& e = ecu.engine().counters();
+    std::fprintf(stderr,
+                 "markloop: engine %llu sequences, %llu candidates, %llu too recent, %llu residual, "
+                 "%llu drift, %llu loaded-map hypotheses, %llu loaded-map disagreeing, %llu matches\n",
+                 (unsigned long long)e.sequences_created, (unsigned long long)e.candidates,
+                 (unsigned long long)e.candidates_too_recent,
+                 (unsigned long long)e.candidates_rejected_residual,
+                 (unsigned long long)e.candidates_rejected_drift,
+                 (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
+                 (unsigned long long)e.matches);
   }
   if (options.summary_json.empty()) return;
   std::FILE* out = std::fopen(options.summary_json.c_str(), "w");

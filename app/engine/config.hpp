@@ -42,6 +42,27 @@ struct MatchConfig {
   // Bound on candidates examined per query, so latency stays bounded even on
   // pathologically repetitive roads.
   unsigned max_candidates_per_query = 64;
+  // Odometry prior (off when max_drift_rel is 0): within one session, the
+  // two visits' landmarks may lie apart in the world frame by at most what
+  // the odometry can have drifted over the distance driven in between,
+  // abs + rel * distance (and the alignment's rotation at most
+  // yaw_abs + yaw_rel * distance). Look-alike places elsewhere are rejected.
+  // Landmarks of a loaded map (negative stations) are not gated: their
+  // world frame is another session's.
+  double max_drift_rel = 0.0;
+  double max_drift_abs_m = 5.0;
+  double max_drift_yaw_abs_deg = 5.0;
+  double max_drift_yaw_rel_deg_per_m = 0.01;
+  // Places of a loaded map (an earlier session, whose world frame is
+  // unrelated): a match into them is only a hypothesis of how the two
+  // frames relate (the alignment); a later match, at least confirm_min_gap_m
+  // and at most confirm_within_m of driving further, that agrees with one of
+  // the recent hypotheses (same drift limits) confirms it, and from then on
+  // matches must agree with the latest confirmed alignment. Look-alike
+  // places give alignments that do not agree.
+  bool confirm_loaded_places = false;
+  double confirm_min_gap_m = 50.0;
+  double confirm_within_m = 300.0;
 };
 
 struct DatabaseConfig {

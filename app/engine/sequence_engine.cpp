@@ -39,6 +39,13 @@ const char* validate(const EngineConfig& c) {
       c.match.index_bin_tolerances > 1000.0)
     return "index bin width must be between 3 and 1000 tolerances";
   if (c.match.max_candidates_per_query < 1) return "candidate limit must be at least 1";
+  if (!finite_non_negative(c.match.max_drift_rel) || !finite_non_negative(c.match.max_drift_abs_m) ||
+      !finite_non_negative(c.match.max_drift_yaw_abs_deg) ||
+      !finite_non_negative(c.match.max_drift_yaw_rel_deg_per_m))
+    return "drift limits must be non-negative";
+  if (!finite_non_negative(c.match.confirm_within_m) ||
+      !finite_non_negative(c.match.confirm_min_gap_m))
+    return "confirmation distances must be non-negative";
   if (c.database.landmark_capacity < 16 || c.database.landmark_capacity > (std::size_t{1} << 30))
     return "landmark capacity must be between 16 and 2^30";
   if (c.database.sequence_capacity < 16 || c.database.sequence_capacity > (std::size_t{1} << 30))
@@ -178,6 +185,18 @@ void SequenceEngine::chain(LandmarkId id, MatchSink& sink) {
   }
 }
 
+bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from,
+                            const Eigen::Vector2d& to, double yaw, double driven) const {
+  const MatchConfig& mc = config_.match;
+  const double c = std::cos(transform.yaw), s = std::sin(transform.yaw);
+  const Eigen::Vector2d predicted(transform.x + c * from.x() - s * from.y(),
+                                  transform.y + s * from.x() + c * from.y());
+  const double turned = std::abs(wrap_angle(yaw - transform.yaw)) * 180.0 / 3.14159265358979323846;
+  driven = std::max(driven, 0.0);
+  return (predicted - to).norm() <= mc.max_drift_abs_m + mc.max_drift_rel * driven &&
+         turned <= mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven;
+}
+
 bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShape& shape,
                            MatchEvent& best) {
   const unsigned k = config_.chain.k;
@@ -218,6 +237,61 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
     if (fit.rms_residual > mc.max_residual_m) {
       ++counters_.candidates_rejected_residual;
       return true;
+    }
+    const Landmark& candidate_first = *database_.landmark(candidate[0]);
+    if (mc.confirm_loaded_places && candidate_first.station < 0.0) {
+      // A place of a loaded map: its alignment must agree with how the two
+      // sessions' frames are known (or about to be found) to relate.
+      Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
+      for (unsigned i = 0; i < k; ++i) {
+        query_centre += query_points[i] / k;
+        candidate_centre += candidate_points[i] / k;
+      }
+      const double here = query_first.station;
+      if (confirmed_.valid) {
+        if (!agrees(confirmed_.transform, candidate_centre, query_centre, fit.transform.yaw,
+                    here - confirmed_.station)) {
+          ++counters_.loaded_rejected;
+          return true;
+        }
+        confirmed_ = {true, fit.transform, here};
+      } else {
+        // Confirmed by an earlier hypothesis that agrees and rests on other
+        // landmarks (at least a row further back along the drive).
+        bool confirmed = false;
+        for (const SessionAlignment& h : hypotheses_) {
+          const double driven = here - h.station;
+          if (driven >= mc.confirm_min_gap_m && driven <= mc.confirm_within_m &&
+              agrees(h.transform, candidate_centre, query_centre, fit.transform.yaw, driven)) {
+            confirmed = true;
+            break;
+          }
+        }
+        if (!confirmed) {
+          if (hypotheses_.full()) hypotheses_.erase_at(0);
+          hypotheses_.push_back({true, fit.transform, here});
+          ++counters_.loaded_hypotheses;
+          return true;
+        }
+        confirmed_ = {true, fit.transform, here};
+        hypotheses_.clear();
+      }
+    }
+    if (mc.max_drift_rel > 0.0 && candidate_first.station >= 0.0) {
+      // Same session: the places' world positions differ by the odometry's drift only.
+      Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
+      for (unsigned i = 0; i < k; ++i) {
+        query_centre += query_points[i];
+        candidate_centre += candidate_points[i];
+      }
+      const double driven = query_first.station - candidate_last.station;
+      const double apart = (query_centre - candidate_centre).norm() / k;
+      const double turned = std::abs(fit.transform.yaw) * 180.0 / 3.14159265358979323846;
+      if (apart > mc.max_drift_abs_m + mc.max_drift_rel * driven ||
+          turned > mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven) {
+        ++counters_.candidates_rejected_drift;
+        return true;
+      }
     }
     ++verified;
     if (!found || fit.rms_residual < best.residual_m) {

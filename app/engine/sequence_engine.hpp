@@ -19,6 +19,8 @@
 #include "engine/sequence_database.hpp"
 #include "engine/types.hpp"
 
+#include <Eigen/Core>
+
 namespace markloop {
 
 struct MatchEvent {
@@ -63,6 +65,9 @@ struct EngineCounters {
   std::uint64_t candidates = 0;  // labels and distances agree
   std::uint64_t candidates_too_recent = 0;
   std::uint64_t candidates_rejected_residual = 0;
+  std::uint64_t candidates_rejected_drift = 0;  // beyond the odometry prior
+  std::uint64_t loaded_hypotheses = 0;          // first matches into a loaded map, held back
+  std::uint64_t loaded_rejected = 0;            // disagreeing with the confirmed alignment
   std::uint64_t candidate_limit_hits = 0;
   std::uint64_t matches = 0;
 };
@@ -125,6 +130,20 @@ class SequenceEngine {
   // The last k rows, oldest first.
   FixedVector<Row, kMaxSequenceLength> rows_;
   MatchEvent best_;  // scratch, kept here to keep the stack small
+
+  // How a loaded map's world frame relates to this session's (see
+  // MatchConfig::confirm_loaded_places): a hypothesis, then confirmed.
+  struct SessionAlignment {
+    bool valid = false;
+    Pose2 transform{};     // loaded world -> this session's world
+    double station = 0.0;  // where it was last supported
+  };
+  FixedVector<SessionAlignment, 16> hypotheses_;  // newest last
+  SessionAlignment confirmed_;
+  // True when `transform` maps `from` (loaded) onto `to` (this session)
+  // within the drift limits for `driven` metres.
+  bool agrees(const Pose2& transform, const Eigen::Vector2d& from, const Eigen::Vector2d& to,
+              double yaw, double driven) const;
 };
 
 }  // namespace markloop
