@@ -532,9 +532,9 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
     if (cast_shadows) {
       // Crowns 4 m across; ragged edges only where a pixel is small enough.
       float n = noise_(wx * 0.25 + 317.5, wy * 0.25 + 421.5);
-      if (n > 0.55F) {
+      if (n > 0.6F) {
         if (fine > 0.0F) n += 0.12F * fine * (noise_(wx * 0.9 + 619.5, wy * 0.9 + 127.5) - 0.5F);
-        l *= 1.0F - 0.55F * smoothstep(0.66F, 0.71F, n);
+        l *= 1.0F - 0.55F * smoothstep(0.70F, 0.75F, n);
       }
     }
     light_[i] = l;
