@@ -166,22 +166,27 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
   }
 
   const auto& classes = marking_class_names();
-  std::vector<std::string> records;
+  // The legacy markings.txt starts with its record count: the records go to
+  // a side file first, so memory stays bounded however long the drive.
+  const std::filesystem::path records_path = dir / "markings.txt.part";
+  std::optional<OutputFile> records;
+  records.emplace(records_path, error);
+  if (!records->ok()) return false;
+  std::size_t record_count = 0;
   std::vector<VisibleMarking> seen;
   std::vector<Occluder> occluders;
   cv::Mat image(camera.height(), camera.width(), CV_8UC1);
   Conditions first_day = options.conditions;
   DriveFrame frame;
-  char line[160];
   std::size_t next_report = 1;
   for (std::size_t k = 0; k < frames && drive.next(frame); ++k) {
     write_kitti_pose(poses.get(), frame.estimate.pose);
     std::fprintf(truth.get(), "%u,%.3f,%.4f,%.4f,%.6f\n", frame.estimate.frame, frame.estimate.t,
                  frame.truth.x, frame.truth.y, frame.truth.yaw);
     for (const auto& obs : frame.observations) {
-      std::snprintf(line, sizeof line, "%u %.4f 1.5 %.4f %s", frame.estimate.frame, -obs.y, obs.x,
-                    classes.at(obs.label).c_str());
-      records.emplace_back(line);
+      std::fprintf(records->get(), "%u %.4f 1.5 %.4f %s\n", frame.estimate.frame, -obs.y, obs.x,
+                   classes.at(obs.label).c_str());
+      ++record_count;
     }
     if (renderer) {
       const int day = scenario.days > 1
@@ -224,12 +229,27 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
   const double end_time = summary.frames > 0 ? double(summary.frames - 1) / options.drive.fps : 0.0;
   if (!write_odometry(scenario, options, end_time, summary, error)) return false;
 
+  if (!records->close()) return false;
   {
     OutputFile markings(dir / "markings.txt", error);
     if (!markings.ok()) return false;
-    std::fprintf(markings.get(), "%zu\n", records.size());
-    for (const auto& r : records) std::fprintf(markings.get(), "%s\n", r.c_str());
+    std::fprintf(markings.get(), "%zu\n", record_count);
+    std::FILE* part = std::fopen(records_path.c_str(), "r");
+    if (part == nullptr) {
+      error = "cannot read " + records_path.string() + ": " + std::strerror(errno);
+      return false;
+    }
+    char buffer[1 << 16];
+    for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, part)) > 0;)
+      std::fwrite(buffer, 1, n, markings.get());
+    const bool read_ok = std::ferror(part) == 0;
+    std::fclose(part);
+    if (!read_ok) {
+      error = "error reading " + records_path.string();
+      return false;
+    }
     if (!markings.close()) return false;
+    std::filesystem::remove(records_path, ec);
   }
   {
     OutputFile world(dir / "markings.csv", error);
@@ -240,7 +260,7 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
                    m.heading);
     if (!world.close()) return false;
   }
-  summary.detections = records.size();
+  summary.detections = record_count;
   return perception::save_camera_model(camera, (dir / "camera.yaml").string(), error);
 }
 
