@@ -153,6 +153,8 @@ const std::vector<Key>& keys() {
       integer_key("camera.width", 16, 8192, [](EcuConfig& c) -> unsigned& { return c.camera.width; }),
       integer_key("camera.height", 16, 8192, [](EcuConfig& c) -> unsigned& { return c.camera.height; }),
       integer_key("camera.fps", 0, 240, [](EcuConfig& c) -> unsigned& { return c.camera.fps; }),
+      integer_key("camera.max_rate", 0, 240,
+                  [](EcuConfig& c) -> unsigned& { return c.camera.max_rate; }),
       integer_key("camera.timeout_ms", 10, 60000,
                   [](EcuConfig& c) -> unsigned& { return c.camera.timeout_ms; }),
       text_key("calibration", &EcuConfig::calibration),

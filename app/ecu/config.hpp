@@ -23,6 +23,7 @@ struct CameraSettings {
   unsigned height = 512;
   unsigned fps = 10;                   // 0: the driver's rate (HDMI-like inputs); deadlines as 10
   unsigned timeout_ms = 500;           // no frame this long: camera lost
+  unsigned max_rate = 0;               // process at most this many frames per second (0: all)
 };
 
 struct CanSettings {

@@ -36,6 +36,7 @@ using SteadyClock = std::chrono::steady_clock;
 struct EcuCounters {
   std::uint64_t frames_processed = 0;
   std::uint64_t frames_dropped = 0;        // skipped (overrun) or lost by the camera
+  std::uint64_t frames_over_rate = 0;      // skipped on purpose: above camera.max_rate
   std::uint64_t frames_without_pose = 0;   // processed for detection only
   std::uint64_t overruns = 0;              // processing took longer than a frame period
   std::uint64_t detections = 0;
@@ -90,6 +91,9 @@ class Ecu final : private MatchSink {
   }
   // A frame that was not processed (late: the loop overran) or lost.
   void count_dropped_frames(std::uint64_t n) noexcept { counters_.frames_dropped += n; dropped_in_cycle_ += n; }
+
+  // A frame skipped on purpose (camera.max_rate).
+  void count_frame_over_rate() noexcept { ++counters_.frames_over_rate; }
 
   // Deadlines the loop missed (status timer expirations beyond one).
   void count_overruns(std::uint64_t n) noexcept { counters_.overruns += n; overruns_in_cycle_ += n; }

@@ -133,6 +133,10 @@ int run_live_mode(const RunOptions& options) {
   nanoseconds last_watchdog = start;
   const nanoseconds frame_period(1'000'000'000LL / (config.camera.fps == 0 ? 10U : config.camera.fps));
   std::uint64_t camera_dropped_seen = 0;
+  const nanoseconds min_frame_spacing =
+      config.camera.max_rate == 0 ? nanoseconds(0)
+                                  : nanoseconds(1'000'000'000LL / config.camera.max_rate) - milliseconds(2);
+  nanoseconds last_processed = nanoseconds::min() / 2;
   int stop_signal = 0;
 
   while (stop_signal == 0) {
@@ -166,9 +170,12 @@ int run_live_mode(const RunOptions& options) {
                                          ? nanoseconds(view.timestamp_ns)
                                          : platform::monotonic_now();
         const auto arrival = SteadyClock::now();
-        if (platform::monotonic_now() - captured > frame_period) {
+        if (captured - last_processed < min_frame_spacing) {
+          ecu.count_frame_over_rate();
+        } else if (platform::monotonic_now() - captured > frame_period) {
           ecu.count_dropped_frames(1);  // already a period old: skip, count, keep going
         } else if (luma_of(view, yuyv_luma, grey)) {
+          last_processed = captured;
           (void)ecu.on_frame(grey, captured - start, arrival);
         } else {
           ecu.count_dropped_frames(1);

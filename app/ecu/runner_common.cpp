@@ -79,10 +79,11 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
   (void)platform::resident_bytes(rss);
   if (!options.quiet) {
     std::fprintf(stderr,
-                 "markloop: %s mode, %.1f s: %llu frames processed, %llu dropped, %llu overruns, "
-                 "%llu detections, %llu loop detections sent\n",
+                 "markloop: %s mode, %.1f s: %llu frames processed, %llu dropped, %llu above the rate, "
+                 "%llu overruns, %llu detections, %llu loop detections sent\n",
                  mode, wall_seconds, (unsigned long long)c.frames_processed,
-                 (unsigned long long)c.frames_dropped, (unsigned long long)c.overruns,
+                 (unsigned long long)c.frames_dropped, (unsigned long long)c.frames_over_rate,
+                 (unsigned long long)c.overruns,
                  (unsigned long long)c.detections, (unsigned long long)c.loop_detections);
     std::fprintf(stderr,
                  "markloop: per frame (ms, 10 us bins) detect median %.2f p99 %.2f | engine median "

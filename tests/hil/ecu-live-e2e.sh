@@ -10,7 +10,7 @@
 #   then: SIGTERM to markloop (map saved, exit 0), and the candump log must
 #         hold complete, E2E-valid LoopDetection detections and Status.
 #
-#   ecu-live-e2e.sh BUILD_DIR RESULTS_DIR [--frames N] [--scenario NAME]
+#   ecu-live-e2e.sh BUILD_DIR RESULTS_DIR [--frames N (0: all)] [--scenario NAME]
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 src=$(cd "$here/../.." && pwd)
@@ -18,7 +18,7 @@ src=$(cd "$here/../.." && pwd)
 bin=$(cd "$1" && pwd)
 results=$2
 shift 2
-frames=1500
+frames=0  # the whole drive: the second lap gives the loops
 scenario=loop
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -38,8 +38,10 @@ camera=$src/app/cameras/hil-640x480.yaml
 if [ ! -s "$drive/frames.y4m" ] || [ "$(cat "$drive/.args" 2>/dev/null)" != "$scenario $frames" ]; then
   rm -rf "$drive"
   echo "ecu-live-e2e: rendering $frames frames of '$scenario' for the HIL camera"
+  limit=()
+  [ "$frames" = 0 ] || limit=(--max-frames "$frames")
   "$bin/sim/markloop-sim" drive --scenario "$scenario" --seed 1 --camera "$camera" \
-    --max-frames "$frames" --out "$drive" >/dev/null
+    "${limit[@]}" --out "$drive" >/dev/null
   echo "$scenario $frames" >"$drive/.args"
 fi
 
