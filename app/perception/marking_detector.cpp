@@ -101,6 +101,10 @@ std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
       ++counters_.rejected;
       continue;
     }
+    if (candidate.clipped && !config_.report_clipped) {
+      ++counters_.clipped;
+      continue;
+    }
     if (candidate.score < config_.min_score) {
       ++counters_.low_score;
       continue;
@@ -362,10 +366,29 @@ void MarkingDetector::group_parts(std::size_t part_count) {
       ++counters_.oversize;
       continue;
     }
+    c.clipped = touches_edge(c);
     candidates_[kept++] = c;
   }
   candidate_count_ = kept;
   counters_.candidates += kept;
+}
+
+bool MarkingDetector::touches_edge(const Candidate& c) const {
+  const cv::Mat& valid = birdseye_.valid();
+  if (c.row0 == 0 || c.col0 == 0 || c.row1 == valid.rows - 1 || c.col1 == valid.cols - 1)
+    return true;
+  // One pixel outside the box all round: any pixel that does not see the
+  // road means the marking may go on beyond it.
+  const int r0 = c.row0 - 1, r1 = c.row1 + 1, c0 = c.col0 - 1, c1 = c.col1 + 1;
+  const std::uint8_t* top = valid.ptr<std::uint8_t>(r0);
+  const std::uint8_t* bottom = valid.ptr<std::uint8_t>(r1);
+  for (int col = c0; col <= c1; ++col)
+    if (top[col] == 0 || bottom[col] == 0) return true;
+  for (int row = r0; row <= r1; ++row) {
+    const std::uint8_t* line = valid.ptr<std::uint8_t>(row);
+    if (line[c0] == 0 || line[c1] == 0) return true;
+  }
+  return false;
 }
 
 void MarkingDetector::classify(Candidate& candidate) {

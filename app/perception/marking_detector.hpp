@@ -72,6 +72,9 @@ struct DetectorConfig {
   float max_marking_length_m = 9.0f;  // larger groups are not markings (cars, shadows' edges)
   float max_marking_width_m = 9.0f;
   float min_score = 0.5f;  // below: rejected even if a marking class wins
+  // Markings cut by the edge of the view are classified (for training) but
+  // not reported: their class and centre are guesses.
+  bool report_clipped = false;
   // Classifier weights; nullptr: the model compiled in (model/marking_model.cpp).
   const MlpModel* model = nullptr;
 };
@@ -90,6 +93,7 @@ struct DetectorCounters {
   std::uint64_t candidates = 0;          // groups classified
   std::uint64_t candidates_dropped = 0;  // over capacity (kMaxCandidates)
   std::uint64_t oversize = 0;            // parts or groups too large to be a marking
+  std::uint64_t clipped = 0;             // groups cut by the region's or the image's edge
   std::uint64_t rejected = 0;            // classifier said: not a marking
   std::uint64_t low_score = 0;           // marking class below min_score
   std::uint64_t detections = 0;
@@ -102,6 +106,7 @@ struct Candidate {
   int col0, row0, col1, row1;  // inclusive
   int parts;
   float length_m, width_m;  // along and across the road
+  bool clipped;             // touches the edge of the view: seen only in part
   Features features;
   int predicted;  // class index, kRejectClass for "not a marking"
   float score;
@@ -143,6 +148,7 @@ class MarkingDetector {
   std::size_t label_parts();
   void group_parts(std::size_t part_count);
   void classify(Candidate& candidate);
+  bool touches_edge(const Candidate& candidate) const;
 
   CameraModel camera_;
   DetectorConfig config_;

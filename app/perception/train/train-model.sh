@@ -8,8 +8,10 @@
 # REAL_DIR: the real images (roadmarks-honda layout; default
 # ../shared/data/roadmarks-honda). They are read, never copied. The simulator
 # data is rendered into build/train-data with fixed seeds: training sets
-# 101..105 (600 images each), and, held apart for evaluation only, the
-# training-set seed 9001 and a drive of the `loop` scenario with seed 7.
+# 101..105 (600 images each) and a drive of the `figure8` scenario with seed
+# 21 (curves, lane changes, off-road clutter) to train on; held apart for
+# evaluation only, the training-set seed 9001 and a drive of the `loop`
+# scenario with seed 7.
 # Same inputs, same model: every random choice is seeded.
 set -eu
 REAL=${1:-../shared/data/roadmarks-honda}
@@ -23,11 +25,14 @@ for seed in 101 102 103 104 105; do
     "$SIM" training-set --out "$DATA/sim$seed" --seed "$seed" --frames 600
   sims="$sims --sim $DATA/sim$seed"
 done
+[ -f "$DATA/drive-figure8-21/visible.csv" ] ||
+  "$SIM" drive --scenario figure8 --seed 21 --out "$DATA/drive-figure8-21"
 [ -f "$DATA/simtest9001/annotations.csv" ] ||
   "$SIM" training-set --out "$DATA/simtest9001" --seed 9001 --frames 300
 [ -f "$DATA/drive-loop-7/visible.csv" ] ||
   "$SIM" drive --scenario loop --seed 7 --out "$DATA/drive-loop-7"
 # shellcheck disable=SC2086  # $sims is a list of options
 "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $sims \
-  --sim-test "$DATA/simtest9001" --sim-drive "$DATA/drive-loop-7" \
+  --sim-drive-train "$DATA/drive-figure8-21" \
+  --sim-test "$DATA/simtest9001" --sim-drive "$DATA/drive-loop-7" --reject-weight 2.5 \
   --out app/perception/model/marking_model.cpp

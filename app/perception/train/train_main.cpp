@@ -39,7 +39,8 @@ using namespace markloop::perception;
 using markloop::cli::fail;
 
 constexpr const char* kUsage =
-    "usage: markloop-train --real DIR --real-camera FILE [--sim DIR]... [--sim-test DIR]...\n"
+    "usage: markloop-train --real DIR --real-camera FILE [--sim DIR]... [--sim-drive-train DIR]...\n"
+    "                      [--sim-test DIR]... [--sim-drive DIR]...\n"
     "                      [--folds N] [--seed N] [--epochs N] [--hidden N] [--out FILE.cpp]\n"
     "\n"
     "Trains the road-marking classifier on the detector's candidates in annotated\n"
@@ -52,6 +53,7 @@ constexpr const char* kUsage =
     "  --sim-test DIR      simulator set held apart: only evaluated; repeatable\n"
     "  --sim-drive DIR     simulator drive (markloop-sim drive: visible.csv, frames.y4m)\n"
     "                      held apart: every 5th frame evaluated; repeatable\n"
+    "  --sim-drive-train DIR  simulator drive trained on (every 5th frame); repeatable\n"
     "  --folds N           cross-validation by clip on the real images (default 4; 0: none):\n"
     "                      clip c (60-frame block) is validated in fold c mod N by a model\n"
     "                      trained without it\n"
@@ -73,24 +75,52 @@ struct Sample {
   int image;    // index into the images of its set
   int clip;     // real: 60-frame block; sim: -1
   bool real;
-  bool augmented;               // a shifted or mirrored copy: training only
+  bool augmented;               // a shifted or rotated copy: training only
+  bool clipped;                 // cut by the edge of the view: trained on, never reported
   std::array<float, 2> centre;  // quad centre in the image, pixels
 };
 
-// Mirror images of arrows are arrows of the mirrored class.
-int mirrored_class(int label) {
-  const auto name = [](const char* n) { return static_cast<int>(*marking_class_from_name(n)); };
-  if (label == name("leftturn")) return name("rightturn");
-  if (label == name("rightturn")) return name("leftturn");
-  if (label == name("forward&left")) return name("forward&right");
-  if (label == name("forward&right")) return name("forward&left");
-  if (label == name("forward") || label == name("diamond") || label == name("stopline") ||
-      label == name("crosswalk") || label == kRejectClass)
-    return label;
-  return -1;  // words, numbers, symbols: no mirror image on the road
-}
-
 constexpr int kJitters = 6;
+constexpr int kRotations = 2;
+constexpr float kMaxRotationDeg = 15.0f;
+
+// Copies of a marking as the car would see it turning or changing lanes:
+// the bird's-eye neighbourhood rotated by up to 15 degrees, the box fitted
+// again to the paint.
+void add_rotated(const MarkingDetector& detector, const Candidate& c, const Sample& s,
+                 std::vector<Sample>& out, std::mt19937& rng) {
+  const cv::Mat& bev = detector.birdseye_image();
+  const cv::Mat& mask = detector.paint_mask();
+  const auto& region = detector.config().region;
+  std::uniform_real_distribution<float> angle(-kMaxRotationDeg, kMaxRotationDeg);
+  const cv::Point2f centre(0.5f * static_cast<float>(c.col0 + c.col1),
+                           0.5f * static_cast<float>(c.row0 + c.row1));
+  for (int k = 0; k < kRotations; ++k) {
+    const cv::Mat rotation = cv::getRotationMatrix2D(centre, angle(rng), 1.0);
+    cv::Mat bev_r, mask_r;
+    cv::warpAffine(bev, bev_r, rotation, bev.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+    cv::warpAffine(mask, mask_r, rotation, mask.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+    // The rotated box's bounds, tightened to the paint inside them.
+    std::vector<cv::Point2f> corners = {{static_cast<float>(c.col0), static_cast<float>(c.row0)},
+                                        {static_cast<float>(c.col1), static_cast<float>(c.row0)},
+                                        {static_cast<float>(c.col1), static_cast<float>(c.row1)},
+                                        {static_cast<float>(c.col0), static_cast<float>(c.row1)}};
+    cv::transform(corners, corners, rotation);
+    cv::Rect bounds = cv::boundingRect(corners) & cv::Rect(0, 0, bev.cols, bev.rows);
+    if (bounds.width < 2 || bounds.height < 2) continue;
+    const cv::Rect paint = cv::boundingRect(mask_r(bounds) > 127);
+    if (paint.width < 2 || paint.height < 2) continue;
+    const cv::Rect box(bounds.x + paint.x, bounds.y + paint.y, paint.width, paint.height);
+    PatchBox patch{box.x, box.y, box.x + box.width - 1, box.y + box.height - 1,
+                   static_cast<float>(box.height) * region.x_step_m,
+                   static_cast<float>(box.width) * region.y_step_m, c.parts};
+    Sample copy = s;
+    copy.augmented = true;
+    PatchScratch scratch;
+    compute_features(bev_r, mask_r, patch, scratch, copy.features);
+    out.push_back(copy);
+  }
+}
 
 struct ImageSet {
   std::string dir;
@@ -123,8 +153,6 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   MarkingDetector detector(*camera, config);
   std::mt19937 rng(12345);
   std::uniform_real_distribution<float> jitter(-0.08f, 0.08f);
-  cv::Mat flipped_bev, flipped_mask;
-  int flipped_for = -1;
   int loaded = 0;
   markloop::io::Y4mReader video;
   long video_frame = -1;
@@ -178,15 +206,21 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       }
       s.label = kRejectClass;
       s.augmented = false;
+      s.clipped = c.clipped;
       for (const auto& a : image.annotations) {
         if (!inside(a.quad, s.centre[0], s.centre[1])) continue;
         const auto label = marking_class_from_name(a.label);
         s.label = label ? static_cast<int>(*label) : -2;
         break;
       }
+      // A drive lists only markings wholly in the image: a candidate cut by
+      // the edge of the view may be one of the others, so it teaches nothing.
+      if (drive && s.label == kRejectClass && c.clipped) s.label = -2;
       set.samples.push_back(s);
-      // The simulator varies its markings itself; the few real clips need help.
-      if (s.label < 0 || !real) continue;
+      if (s.label < 0) continue;
+      if (s.label != kRejectClass) add_rotated(detector, c, s, set.samples, rng);
+      // The simulator varies its markings itself; the few real clips need more help.
+      if (!real) continue;
       // Shifted and scaled boxes, as the detector would cut them on another
       // frame; markings get more copies than the plentiful rejects.
       const int copies = s.label == kRejectClass ? 1 : kJitters;
@@ -211,16 +245,6 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
         }
       };
       add(detector.birdseye_image(), detector.paint_mask(), c.col0, c.col1, s.label);
-      const int mirror = mirrored_class(s.label);
-      if (mirror < 0) continue;
-      if (flipped_bev.empty() || flipped_bev.size() != detector.birdseye_image().size() ||
-          flipped_for != static_cast<int>(i)) {
-        cv::flip(detector.birdseye_image(), flipped_bev, 1);
-        cv::flip(detector.paint_mask(), flipped_mask, 1);
-        flipped_for = static_cast<int>(i);
-      }
-      const int cols = detector.birdseye_image().cols;
-      add(flipped_bev, flipped_mask, cols - 1 - c.col1, cols - 1 - c.col0, mirror);
     }
   }
   std::printf("%s: %d images, %zu candidates\n", dir.c_str(), loaded, set.samples.size());
@@ -386,7 +410,7 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
     if (image.in_range[a]) ++score.annotated_in_range[label];
   }
   for (std::size_t i = 0; i < detections.size(); ++i) {
-    if (predicted[i] == kRejectClass || scores[i] < min_score) continue;
+    if (predicted[i] == kRejectClass || scores[i] < min_score || detections[i]->clipped) continue;
     const std::string label(marking_class_name(static_cast<markloop::Label>(predicted[i])));
     // The real dataset does not annotate stop lines and crosswalks: such
     // detections on its images can be judged neither right nor wrong.
@@ -419,6 +443,9 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
       ++score.wrong_label;
     else
       ++score.on_nothing;
+    if (std::getenv("MARKLOOP_TRAIN_LIST_FALSE") != nullptr)
+      std::printf("  false: %s %s %s at (%.0f, %.0f)\n", set.dir.c_str(), image.name.c_str(),
+                  label.c_str(), static_cast<double>(s.centre[0]), static_cast<double>(s.centre[1]));
   }
   for (std::size_t a = 0; a < image.annotations.size(); ++a) {
     if (matched[a] || !marking_class_from_name(image.annotations[a].label)) continue;
@@ -572,7 +599,7 @@ void write_model(const Mlp& m, const std::string& path, const std::string& comma
 int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-train";
   std::string real_dir, real_camera, out;
-  std::vector<std::string> sim_dirs, sim_test_dirs, sim_drive_dirs;
+  std::vector<std::string> sim_dirs, sim_test_dirs, sim_drive_dirs, sim_drive_train_dirs;
   int folds = 4;
   TrainOptions options;
   std::string command = "build/host/app/perception/train/markloop-train";
@@ -595,6 +622,8 @@ int main(int argc, char** argv) {
       sim_test_dirs.emplace_back(value);
     else if (arg == "--sim-drive")
       sim_drive_dirs.emplace_back(value);
+    else if (arg == "--sim-drive-train")
+      sim_drive_train_dirs.emplace_back(value);
     else if (arg == "--folds")
       folds = static_cast<int>(markloop::cli::parse_whole(arg, value));
     else if (arg == "--seed")
@@ -612,7 +641,8 @@ int main(int argc, char** argv) {
     else
       fail("unknown option " + arg + " (see --help)");
   }
-  if (real_dir.empty() && sim_dirs.empty()) fail("no training data: give --real and/or --sim");
+  if (real_dir.empty() && sim_dirs.empty() && sim_drive_train_dirs.empty())
+    fail("no training data: give --real, --sim or --sim-drive-train");
   if (!real_dir.empty() && real_camera.empty()) fail("--real needs --real-camera");
   if (options.hidden < 1 || options.hidden > kMaxHidden)
     fail("--hidden must be 1.." + std::to_string(kMaxHidden));
@@ -625,6 +655,8 @@ int main(int argc, char** argv) {
     g_clips.erase(std::unique(g_clips.begin(), g_clips.end()), g_clips.end());
   }
   for (const auto& dir : sim_dirs) sets.push_back(extract(dir, dir + "/camera.yaml", false));
+  for (const auto& dir : sim_drive_train_dirs)
+    sets.push_back(extract(dir, dir + "/camera.yaml", false, true));
   std::vector<ImageSet> tests;
   for (const auto& dir : sim_test_dirs) tests.push_back(extract(dir, dir + "/camera.yaml", false));
   for (const auto& dir : sim_drive_dirs)
