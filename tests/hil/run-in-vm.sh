@@ -351,10 +351,11 @@ if [ "$(cat /foreign)" = 1 ]; then
   for d in /newroot/* /newroot/.[!.]*; do
     n=${d#/newroot}
     [ -e "$d" ] || [ -L "$d" ] || continue
-    case "$n" in /bin|/sbin|/guest|/proc|/sys|/dev|/run|/tmp|/results|/newroot|/init|/foreign|/base.load|/media.load) continue ;; esac
+    # /tmp stays the host's (read-only): a checkout may live there.
+    case "$n" in /bin|/sbin|/guest|/proc|/sys|/dev|/run|/results|/newroot|/init|/foreign|/base.load|/media.load) continue ;; esac
     [ -e "$n" ] || ln -s "$d" "$n"
   done
-  mkdir -p /sbin /run /tmp /dev/pts /dev/shm
+  mkdir -p /sbin /run /dev/pts /dev/shm
   mount -t devpts devpts /dev/pts
   mount -t tmpfs tmpfs /dev/shm
   mount -t tmpfs -o mode=1777 tmpfs /run || fatal "cannot mount tmpfs on /run"
