@@ -10,6 +10,14 @@
 #include "perception/marking_detector.hpp"
 #include "synthetic_road.hpp"
 
+// AddressSanitizer owns malloc: under it only operator new is counted (the
+// plain build counts everything).
+#if defined(__SANITIZE_ADDRESS__)
+#define MARKLOOP_COUNT_C_ALLOCATIONS 0
+#else
+#define MARKLOOP_COUNT_C_ALLOCATIONS 1
+#endif
+
 extern "C" {
 void* __libc_malloc(std::size_t);
 void* __libc_calloc(std::size_t, std::size_t);
@@ -26,6 +34,7 @@ void count() {
 }
 }  // namespace
 
+#if MARKLOOP_COUNT_C_ALLOCATIONS
 extern "C" {
 void* malloc(std::size_t size) {
   count();
@@ -56,17 +65,18 @@ void* memalign(std::size_t alignment, std::size_t size) {
   return __libc_memalign(alignment, size);
 }
 }
+#endif
 
 void* operator new(std::size_t size) {
   count();
-  if (void* p = __libc_malloc(size == 0 ? 1 : size)) return p;
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
 void* operator new[](std::size_t size) { return operator new(size); }
-void operator delete(void* p) noexcept { __libc_free(p); }
-void operator delete[](void* p) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace markloop::perception;
 using markloop::perception::testing::GroundRect;
@@ -81,7 +91,8 @@ TEST_CASE("the counters see C, C++ and OpenCV allocations", "[perception][memory
   counting = false;
   std::free(p);
   delete q;
-  CHECK(allocations.load() >= 3);
+  // new + malloc + the Mat's buffer; under ASan only the new.
+  CHECK(allocations.load() >= (MARKLOOP_COUNT_C_ALLOCATIONS ? 3u : 1u));
   allocations = 0;
 }
 
