@@ -57,9 +57,10 @@ figures:
                      true pose of the car at the query in the car's frame at
                      the match
   latency            CAN frame timestamp of a detection's last page minus its
-                     QueryTime, minus the time of its QueryFrame (frames.csv),
-                     and minus the latest frame at or before it: median, p99,
-                     max
+                     QueryTime (the capture time of the frame that completed
+                     it: the end-to-end latency), minus the time of its
+                     QueryFrame (frames.csv), and minus the latest frame at or
+                     before it: median, p99, max
   markings           a detection matches a visible marking of its frame when
                      its quad's centre lies inside the marking's quad or their
                      IoU is at least 0.3 (one to one); detection recall and
@@ -191,11 +192,11 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
                "\"revisit_segments\":%zu,\"revisit_segments_detected\":%zu,\"pose_errors\":%zu,"
                "\"translation_error_mean_m\":%.4f,\"translation_error_max_m\":%.4f,"
                "\"rotation_error_mean_deg\":%.4f,\"rotation_error_max_deg\":%.4f,"
-               "\"query_time_mismatches\":%zu,",
+               "\"query_time_inconsistent\":%zu,",
                loops.outcomes.size(), e.correct, e.wrong, e.unjudged, e.revisit_segments,
                e.revisit_segments_detected, e.pose_errors, e.translation_error_mean_m,
                e.translation_error_max_m, e.rotation_error_mean_deg, e.rotation_error_max_deg,
-               loops.query_time_mismatches);
+               loops.query_time_inconsistent);
   json_spread(f, "latency_s", loops.latency_s);
   std::fputc(',', f);
   json_spread(f, "processing_s", loops.processing_s);
@@ -343,10 +344,10 @@ int main(int argc, char** argv) {
   print_spread("  CAN stamp - QueryTime", loops.latency_s, 1000.0, "ms");
   print_spread("  CAN stamp - time of QueryFrame", loops.since_query_frame_s, 1000.0, "ms");
   print_spread("  CAN stamp - last frame before it", loops.processing_s, 1000.0, "ms");
-  if (loops.query_time_mismatches > 0)
-    std::printf("  note: %zu of %zu detections carry a QueryTime that is not frames.csv's time of\n"
-                "        QueryFrame (the DBC's definition of QueryTime)\n",
-                loops.query_time_mismatches, loops.outcomes.size());
+  if (loops.query_time_inconsistent > 0)
+    std::printf("  note: %zu of %zu detections carry a QueryTime before their QueryFrame or after\n"
+                "        their send time (the DBC: capture time of the frame that completed it)\n",
+                loops.query_time_inconsistent, loops.outcomes.size());
 
   if (have_markings) {
     std::printf("\nMarkings (%s against visible.csv; match: centre inside or IoU >= %.1f)\n",

@@ -68,7 +68,10 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
     }
     if (pair.query < frame_times.size()) {
       since_query_frame.push_back(stamp_s - frame_times[pair.query]);
-      if (std::abs(m.query_time_s - frame_times[pair.query]) > 0.0015) ++score.query_time_mismatches;
+      // QueryTime is the capture time of the frame that completed the
+      // detection: never before QueryFrame, never after the send.
+      if (m.query_time_s < frame_times[pair.query] - 0.0015 || m.query_time_s > stamp_s + 0.0015)
+        ++score.query_time_inconsistent;
     }
     score.outcomes.push_back(outcome);
   }

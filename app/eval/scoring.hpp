@@ -46,9 +46,10 @@ struct LoopScore {
   // time after the frame that released the detection arrived (meaningful
   // while processing stays under one frame period).
   Spread processing_s;
-  // QueryTime differs from frames.csv's t of QueryFrame by more than the
-  // signal's 1 ms resolution (the DBC defines QueryTime as that frame's time).
-  std::size_t query_time_mismatches = 0;
+  // QueryTime (the DBC: capture time of the frame that completed the
+  // detection) earlier than QueryFrame's time or later than the send, beyond
+  // the signal's 1 ms resolution.
+  std::size_t query_time_inconsistent = 0;
 };
 
 // `frame_times`: frames.csv's t per frame (same length as the judge's truth).

@@ -107,15 +107,18 @@ TEST_CASE("loop detections are judged against the truth") {
   CHECK(score.processing_s.median == Approx((0.004005 + 0.006005) / 2).margin(1e-9));
   CHECK(score.processing_s.max == Approx(0.006005).margin(1e-9));
   CHECK(score.since_query_frame_s.median == Approx(score.latency_s.median).margin(1e-9));
-  CHECK(score.query_time_mismatches == 0);
+  CHECK(score.query_time_inconsistent == 0);
 
-  SECTION("a QueryTime that is not the query frame's time is flagged") {
+  SECTION("QueryTime is the frame that completed the detection; before QueryFrame is flagged") {
     std::vector<LoopReport> reports = log.loops;
     reports[0].message.query_time_s = 57.0;  // the frame that released the detection
-    const LoopScore s = score_loops(judge, times, reports);
-    CHECK(s.query_time_mismatches == 1);
+    LoopScore s = score_loops(judge, times, reports);
+    CHECK(s.query_time_inconsistent == 0);
     CHECK(s.latency_s.min == Approx(0.004005).margin(1e-9));
     CHECK(s.since_query_frame_s.max == Approx(fixture::kLatency1_s).margin(1e-9));
+    reports[0].message.query_time_s = times[reports[0].message.query_frame] - 1.0;
+    s = score_loops(judge, times, reports);
+    CHECK(s.query_time_inconsistent == 1);
   }
 
   SECTION("a tighter tolerance makes the 3 m detection wrong") {
