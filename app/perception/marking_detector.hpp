@@ -60,7 +60,7 @@ struct DetectorConfig {
   // Where a line along the road (paint run >= junction_along_m) crosses
   // paint across the road (run >= junction_across_m), e.g. a stop line
   // meeting a lane line, the crossing is cut so the two come apart.
-  float junction_along_m = 2.0f;
+  float junction_along_m = 1.0f;
   float junction_across_m = 1.5f;
   // Parts whose boxes come closer than this (along, across the road) form one
   // marking; only parts up to group_max_part_m either way are grouped
