@@ -3,8 +3,8 @@
 # (frames.y4m + odometry.log), the ECU processes it in file mode (markloop),
 # and the evaluation judges what the ECU sent against the simulator's truth.
 #
-#   sim/drive-through-ecu.sh [--bin BUILD_DIR] [--out DIR] [--scenario NAME]
-#                            [--seed N] [--realtime] [--keep-frames] [--map FILE]
+#   sim/drive-through-ecu.sh [--bin BUILD_DIR] [--out DIR]
+#                            [--scenario NAME | --route POSE_FILE] [--seed N] [--realtime] [--keep-frames] [--map FILE]
 #                            [-- extra markloop-sim drive options]
 #
 # Outputs in DIR: the sim's files, ecu-can.log (everything the ECU sent),
@@ -16,6 +16,7 @@ set -euo pipefail
 bin=build/host
 out=
 scenario=loop
+route=
 seed=1
 realtime=()
 keep_frames=0
@@ -30,6 +31,7 @@ while [ $# -gt 0 ]; do
     --bin) bin=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
     --scenario) scenario=$2; shift 2 ;;
+    --route) route=$2; shift 2 ;;
     --seed) seed=$2; shift 2 ;;
     --realtime) realtime=(--realtime); shift ;;
     --keep-frames) keep_frames=1; shift ;;
@@ -39,14 +41,22 @@ while [ $# -gt 0 ]; do
     *) die "unknown option $1 (see --help)" ;;
   esac
 done
-[ -n "$out" ] || out=build/demo-ecu-$scenario
+if [ -n "$route" ]; then
+  [ -r "$route" ] || die "cannot read route file $route"
+  world=(--route "$route")
+  name=$(basename "$route")
+else
+  world=(--scenario "$scenario")
+  name=$scenario
+fi
+[ -n "$out" ] || out=build/demo-ecu-${name%%.*}
 for tool in sim/markloop-sim app/ecu/markloop app/eval/markloop-eval; do
   [ -x "$bin/$tool" ] || die "$bin/$tool is missing: build first (cmake --build --preset host)"
 done
 
 mkdir -p "$out"
-echo "drive-through-ecu: simulating '$scenario' (seed $seed) into $out"
-"$bin/sim/markloop-sim" drive --scenario "$scenario" --seed "$seed" --out "$out" "${sim_extra[@]}"
+echo "drive-through-ecu: simulating '$name' (seed $seed) into $out"
+"$bin/sim/markloop-sim" drive "${world[@]}" --seed "$seed" --out "$out" "${sim_extra[@]}"
 echo "drive-through-ecu: markloop (file mode${realtime:+, real time})"
 "$bin/app/ecu/markloop" --camera-file "$out/frames.y4m" --can-in "$out/odometry.log" \
   --calibration "$out/camera.yaml" --can-out "$out/ecu-can.log" \
