@@ -3,6 +3,7 @@
 // whose size is not the camera's, is reported on stderr and skipped; the
 // exit status is then 1 (2 for bad usage or a bad calibration).
 #include <cmath>
+#include <filesystem>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -83,6 +84,10 @@ int main(int argc, char** argv) {
   if (camera_path.empty()) markloop::cli::fail("--camera FILE is required (see --help)");
   if (images.empty()) markloop::cli::fail("no images given (see --help)");
 
+  // Missing files are reported here, plainly, before OpenCV would log them.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(camera_path, ec))
+    markloop::cli::fail(camera_path + ": no such calibration file");
   std::string error;
   const auto camera = load_camera_model(camera_path, error);
   if (!camera) markloop::cli::fail(error);
@@ -93,6 +98,11 @@ int main(int argc, char** argv) {
 
   int failures = 0;
   for (const std::string& path : images) {
+    if (!std::filesystem::is_regular_file(path, ec)) {
+      std::fprintf(stderr, "markloop-detect: %s: no such file\n", path.c_str());
+      ++failures;
+      continue;
+    }
     cv::Mat grey;
     try {
       grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
