@@ -34,5 +34,5 @@ done
 # shellcheck disable=SC2086  # $sims is a list of options
 "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $sims \
   --sim-drive-train "$DATA/drive-figure8-21" \
-  --sim-test "$DATA/simtest9001" --sim-drive "$DATA/drive-loop-7" --reject-weight 2.5 \
+  --sim-test "$DATA/simtest9001" --sim-drive "$DATA/drive-loop-7" --reject-weight 2.5 --hidden 128 \
   --out app/perception/model/marking_model.cpp
