@@ -19,8 +19,15 @@ int classify(const MlpModel& m, const Features& features,
   std::array<float, kMaxHidden> h;
   for (int j = 0; j < m.hidden; ++j) {
     const float* w = m.w1 + static_cast<std::size_t>(j) * kFeatureCount;
+    // Eight independent partial sums: the compiler can keep them in one
+    // vector register (a single running sum would serialise every add).
+    std::array<float, 8> partial{};
+    int i = 0;
+    for (; i + 8 <= kFeatureCount; i += 8)
+      for (int k = 0; k < 8; ++k) partial[k] += w[i + k] * x[i + k];
     float s = m.b1[j];
-    for (int i = 0; i < kFeatureCount; ++i) s += w[i] * x[i];
+    for (; i < kFeatureCount; ++i) s += w[i] * x[i];
+    for (float p : partial) s += p;
     h[j] = std::max(s, 0.0f);
   }
   float best = -1e30f;
