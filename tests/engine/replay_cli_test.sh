@@ -4,18 +4,7 @@
 set -euo pipefail
 replay=$1 sim=$2 work=$3
 rm -rf "$work" && mkdir -p "$work"
-failures=0
-check() {  # check NAME EXPECTED_STATUS PATTERN -- COMMAND...
-  local name=$1 want=$2 pattern=$3; shift 4
-  local status=0
-  "$@" >"$work/out" 2>&1 || status=$?
-  if [ "$status" != "$want" ] || ! grep -qE -- "$pattern" "$work/out"; then
-    echo "FAIL $name: status $status (want $want), output:"; sed 's/^/  /' "$work/out"
-    failures=$((failures + 1))
-  else
-    echo "ok   $name"
-  fi
-}
+source "$(dirname "$0")/../cli_check.sh"
 
 check "replay --help" 0 "usage: markloop-replay" -- "$replay" --help
 check "sim --help" 0 "usage: markloop-sim" -- "$sim" --help
@@ -51,4 +40,4 @@ check "sweep" 0 "Correct matches \(%\)" -- "$replay" --markings "$work/drive/mar
   --poses "$work/drive/poses.txt" --truth "$work/drive/frames.csv" --sweep 2..6
 check "compat on the drive" 0 "matches \(k=4\)" -- "$replay" --markings "$work/drive/markings.txt" --compat
 
-[ "$failures" = 0 ] || { echo "$failures check(s) failed"; exit 1; }
+finish

@@ -4,18 +4,7 @@
 set -euo pipefail
 eval_tool=$1 fixture=$2 work=$3
 rm -rf "$work" && mkdir -p "$work"
-failures=0
-check() {  # check NAME EXPECTED_STATUS PATTERN -- COMMAND...
-  local name=$1 want=$2 pattern=$3; shift 4
-  local status=0
-  "$@" >"$work/out" 2>&1 || status=$?
-  if [ "$status" != "$want" ] || ! grep -qE -- "$pattern" "$work/out"; then
-    echo "FAIL $name: status $status (want $want), output:"; sed 's/^/  /' "$work/out"
-    failures=$((failures + 1))
-  else
-    echo "ok   $name"
-  fi
-}
+source "$(dirname "$0")/../cli_check.sh"
 fresh() { rm -rf "$work/$1" && "$fixture" "$work/$1" && echo "$work/$1"; }
 
 check "--help" 0 "usage: markloop-eval DIR" -- "$eval_tool" --help
@@ -61,4 +50,4 @@ check "unknown label" 2 "^markloop-eval: $run/ecu-detections.csv:3: label 'left-
 run=$(fresh badpng)
 check "unwritable picture" 2 "nowhere/x.png" -- "$eval_tool" "$run" --png "$work/nowhere/x.png"
 
-[ "$failures" = 0 ] || { echo "$failures check(s) failed"; exit 1; }
+finish

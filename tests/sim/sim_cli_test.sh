@@ -4,18 +4,7 @@
 set -euo pipefail
 sim=$1 routes=$2 work=$3
 rm -rf "$work" && mkdir -p "$work"
-failures=0
-check() {  # check NAME EXPECTED_STATUS PATTERN -- COMMAND...
-  local name=$1 want=$2 pattern=$3; shift 4
-  local status=0
-  "$@" >"$work/out" 2>&1 || status=$?
-  if [ "$status" != "$want" ] || ! grep -qE -- "$pattern" "$work/out"; then
-    echo "FAIL $name: status $status (want $want), output:"; sed 's/^/  /' "$work/out"
-    failures=$((failures + 1))
-  else
-    echo "ok   $name"
-  fi
-}
+source "$(dirname "$0")/../cli_check.sh"
 
 check "help" 0 "usage: markloop-sim drive" -- "$sim" --help
 check "drive help" 0 "odometry.log" -- "$sim" drive --help
@@ -41,4 +30,4 @@ done
 [ "$(wc -l <"$work/route/frames.csv")" = 21 ] || { echo "FAIL route drive: frames.csv rows"; failures=$((failures + 1)); }
 check "training set" 0 "2 images" -- "$sim" training-set --frames 2 --out "$work/train"
 
-[ "$failures" = 0 ] || { echo "$failures check(s) failed"; exit 1; }
+finish
