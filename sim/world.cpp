@@ -343,7 +343,29 @@ Pose2 Path::at(double s) const {
   const double f = span > 0 ? (s - cumulative_[i]) / span : 0.0;
   const double dx = xs_[i + 1] - xs_[i];
   const double dy = ys_[i + 1] - ys_[i];
-  return {xs_[i] + f * dx, ys_[i] + f * dy, std::atan2(dy, dx)};
+  // The heading turns smoothly, as a car's does: near a point shared with a
+  // neighbouring segment it blends the two directions over half the shorter
+  // segment's length either side (a polyline's own direction would jump at
+  // every point of a curve).
+  const auto direction = [&](std::size_t j) {
+    return std::atan2(ys_[j + 1] - ys_[j], xs_[j + 1] - xs_[j]);
+  };
+  const auto length_of = [&](std::size_t j) { return cumulative_[j + 1] - cumulative_[j]; };
+  const double own = std::atan2(dy, dx);
+  const double from_start = s - cumulative_[i], to_end = span - from_start;
+  double yaw = own;
+  if (i > 0) {
+    const double zone = 0.5 * std::min(span, length_of(i - 1));
+    if (from_start < zone)
+      yaw = own + 0.5 * (1.0 - from_start / zone) * wrap_angle(direction(i - 1) - own);
+  }
+  if (i + 2 < xs_.size()) {
+    const double zone = 0.5 * std::min(span, length_of(i + 1));
+    if (to_end < zone)
+      yaw = own + 0.5 * (1.0 - to_end / zone) * wrap_angle(direction(i + 1) - own);
+  }
+  yaw = wrap_angle(yaw);
+  return {xs_[i] + f * dx, ys_[i] + f * dy, yaw};
 }
 
 std::vector<std::string> scenario_names() {

@@ -47,16 +47,24 @@ struct ObservationGate {
   float max_range_m = 16.0f;
 };
 
-// The engine's settings in the car: a landmark needs 3 sightings (the
-// engine's default of 2 suits cleaner inputs such as the paper's data;
-// single-frame clutter from the camera then stays out of the sequences), and
-// the odometry prior rejects look-alike places: within a session two visits
-// may lie apart by at most 5 m + 2 % of the distance driven in between, and
-// places of a loaded map count once a second match confirms how the two
-// sessions' frames relate.
+// The engine's settings in the car:
+// - sequences of k = 3 rows: the odometry prior and the rigid fit keep
+//   look-alike places out, so the shorter sequences add true loops (at the
+//   start of a revisit, on short shared stretches) without false ones; the
+//   pose comes from the whole run of matches, not from 3 points;
+// - a landmark needs 3 sightings (the engine's default of 2 suits cleaner
+//   inputs such as the paper's data): single-frame clutter stays out;
+// - the odometry prior rejects look-alike places: within a session two
+//   visits may lie apart by at most 5 m + 2 % of the distance driven in
+//   between; places of a loaded map count once a second match confirms how
+//   the two sessions' frames relate;
+// - a match whose landmarks, aligned, still disagree by more than 0.3 m RMS
+//   is not sent: its relative pose would be no better than that.
 inline EngineConfig ecu_engine_defaults() {
   EngineConfig c;
+  c.chain.k = 3;
   c.tracker.min_observations = 3;
+  c.match.max_residual_m = 0.3;
   c.match.max_drift_rel = 0.02;
   c.match.confirm_loaded_places = true;
   return c;

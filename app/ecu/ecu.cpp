@@ -13,6 +13,9 @@ namespace markloop::ecu {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+// A detection's ground position error grows about linearly with range; this
+// is the range at which it is twice that of a marking at the bumper.
+constexpr double kPositionErrorDoublingRange_m = 5.0;
 
 can::CanFrame to_can(const dbc::CanFrame& frame) {
   can::CanFrame out;
@@ -144,6 +147,10 @@ void Ecu::process(std::span<const perception::Detection> detections, Nanoseconds
       o.label = d.label;
       o.x = static_cast<float>(input.pose.x + c * d.ground_x - s * d.ground_y);
       o.y = static_cast<float>(input.pose.y + s * d.ground_x + c * d.ground_y);
+      // A pixel covers more ground, and a pitch error moves it further, the
+      // further ahead it lies: inverse variance, error growing with range.
+      const double spread = 1.0 + d.ground_x / kPositionErrorDoublingRange_m;
+      o.weight = static_cast<float>(1.0 / (spread * spread));
       if (!observations_.push_back(o)) ++counters_.detections_rejected;
     }
   } else {

@@ -11,7 +11,8 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
 
   for (const Observation& obs : observations) {
     ++counters_.observations;
-    if (!std::isfinite(obs.x) || !std::isfinite(obs.y)) {
+    if (!std::isfinite(obs.x) || !std::isfinite(obs.y) || !std::isfinite(obs.weight) ||
+        obs.weight <= 0.0f) {
       ++counters_.observations_rejected;
       continue;
     }
@@ -19,8 +20,8 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
     double best_sq = radius_sq;
     for (Track& track : tracks_) {
       if (track.updated) continue;
-      const double dx = track.sum_x / track.count - obs.x;
-      const double dy = track.sum_y / track.count - obs.y;
+      const double dx = track.sum_x / track.sum_weight - obs.x;
+      const double dy = track.sum_y / track.sum_weight - obs.y;
       const double d_sq = dx * dx + dy * dy;
       if (d_sq <= best_sq) {
         best_sq = d_sq;
@@ -38,8 +39,9 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
     }
     Track& track = *best;
     if (track.count == UINT16_MAX) continue;  // a marking seen for hours: enough
-    track.sum_x += obs.x;
-    track.sum_y += obs.y;
+    track.sum_x += double(obs.weight) * obs.x;
+    track.sum_y += double(obs.weight) * obs.y;
+    track.sum_weight += obs.weight;
     ++track.count;
     track.last_frame = frame.frame;
     track.t_last = frame.t;
@@ -78,8 +80,8 @@ bool LandmarkTracker::to_landmark(const Track& track, Landmark& out) {
   out.observations = track.count;
   out.first_frame = track.first_frame;
   out.last_frame = track.last_frame;
-  out.x = static_cast<float>(track.sum_x / track.count);
-  out.y = static_cast<float>(track.sum_y / track.count);
+  out.x = static_cast<float>(track.sum_x / track.sum_weight);
+  out.y = static_cast<float>(track.sum_y / track.sum_weight);
   out.t = track.t_last;
   out.has_car_pose = track.has_pose;
   if (track.has_pose) {

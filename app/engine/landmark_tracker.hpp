@@ -1,4 +1,5 @@
-// Fuses the per-frame observations of one physical marking into a landmark.
+// Fuses the per-frame observations of one physical marking into a landmark
+// (its position: the observations' mean, weighted by their precision).
 //
 // An observation joins the nearest active track within the association
 // radius that has not been updated in this frame (so markings side by side in
@@ -18,7 +19,7 @@ namespace markloop {
 
 struct TrackerCounters {
   std::uint64_t observations = 0;
-  std::uint64_t observations_rejected = 0;  // non-finite position
+  std::uint64_t observations_rejected = 0;  // non-finite position or weight <= 0
   std::uint64_t observations_dropped = 0;   // no free track
   std::uint64_t tracks_started = 0;
   std::uint64_t landmarks_committed = 0;
@@ -53,8 +54,9 @@ class LandmarkTracker {
     std::uint16_t count;
   };
   struct Track {
-    double sum_x = 0.0;
+    double sum_x = 0.0;  // weighted sums of the observed positions
     double sum_y = 0.0;
+    double sum_weight = 0.0;
     std::uint16_t count = 0;
     FrameIndex first_frame = 0;
     FrameIndex last_frame = 0;

@@ -56,7 +56,10 @@ const char* validate(const EngineConfig& c) {
 SequenceEngine::SequenceEngine(const EngineConfig& config)
     : config_(config),
       tracker_(config.tracker),
-      database_(config.database, config.match, config.chain.k) {}
+      database_(config.database, config.match, config.chain.k),
+      // The history must reach back past the release lag, with room for
+      // landmarks released late; a few centimetres apart is precise enough.
+      history_spacing_m_(std::max(0.02, (config.tracker.release_lag_m + 25.0) / kFrameHistory)) {}
 
 void SequenceEngine::process_frame(const FrameInput& frame,
                                    std::span<const Observation> observations, MatchSink& sink) {
@@ -69,12 +72,48 @@ void SequenceEngine::process_frame(const FrameInput& frame,
       odometer_ += std::hypot(frame.pose.x - previous_pose_.x, frame.pose.y - previous_pose_.y);
     previous_pose_ = frame.pose;
     have_previous_pose_ = true;
+    remember_frame(frame);
   }
   tracker_.observe(frame, odometer_,
                    observations.first(std::min(observations.size(), kMaxObservationsPerFrame)));
   if (observations.size() > kMaxObservationsPerFrame)
     counters_.observations_over_limit += observations.size() - kMaxObservationsPerFrame;
   commit_and_release(frame.t, false, sink);
+}
+
+void SequenceEngine::remember_frame(const FrameInput& frame) {
+  if (history_size_ > 0 &&
+      odometer_ < history_at(history_size_ - 1).odometer + history_spacing_m_)
+    return;
+  const PassingFrame entry{frame.frame, frame.t, odometer_, frame.pose};
+  if (history_size_ < kFrameHistory) {
+    history_[(history_oldest_ + history_size_++) % kFrameHistory] = entry;
+  } else {
+    history_[history_oldest_] = entry;
+    history_oldest_ = (history_oldest_ + 1) % kFrameHistory;
+  }
+}
+
+bool SequenceEngine::represent_by_passing_frame(Landmark& landmark) {
+  if (history_size_ == 0) return false;
+  // First remembered frame at or past the landmark's station (odometers rise).
+  std::size_t lo = 0, hi = history_size_;
+  while (lo < hi) {
+    const std::size_t mid = (lo + hi) / 2;
+    if (history_at(mid).odometer < landmark.station) lo = mid + 1;
+    else hi = mid;
+  }
+  const bool passed = lo < history_size_;
+  if (!passed) lo = history_size_ - 1;
+  if (lo == 0 && history_size_ == kFrameHistory && history_at(0).odometer > landmark.station)
+    ++counters_.passing_frames_forgotten;
+  const PassingFrame& passing = history_at(lo);
+  landmark.last_frame = std::max(landmark.first_frame, passing.frame);
+  landmark.t = passing.t;
+  landmark.car_x = static_cast<float>(passing.pose.x);
+  landmark.car_y = static_cast<float>(passing.pose.y);
+  landmark.car_yaw = static_cast<float>(passing.pose.yaw);
+  return passed;
 }
 
 void SequenceEngine::flush(MatchSink& sink) { commit_and_release(last_t_, true, sink); }
@@ -117,7 +156,11 @@ void SequenceEngine::commit_and_release(double now, bool all, MatchSink& sink) {
 }
 
 void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
-  if (!landmark.has_car_pose) {
+  bool query = true;
+  if (landmark.has_car_pose) {
+    query = represent_by_passing_frame(landmark);
+    if (!query) ++counters_.landmarks_flushed_ahead;
+  } else {
     // No odometry: the travelled distance is the path through the markings.
     landmark.station =
         have_released_ ? last_released_.station + planar_distance(landmark, last_released_) : 0.0;
@@ -141,10 +184,10 @@ void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
     ++counters_.landmarks_unchained;
     return;
   }
-  if (rows_.size() == chain_config.k) chain(id, sink);
+  if (rows_.size() == chain_config.k) chain(id, query, sink);
 }
 
-void SequenceEngine::chain(LandmarkId id, MatchSink& sink) {
+void SequenceEngine::chain(LandmarkId id, bool query, MatchSink& sink) {
   const unsigned k = config_.chain.k;
   // One landmark from each earlier row, then the new one: every combination,
   // so a marking missed on one lane leaves the chains through other lanes.
@@ -165,7 +208,7 @@ void SequenceEngine::chain(LandmarkId id, MatchSink& sink) {
       // One shape serves the query and the insertion.
       SequenceShape shape;
       if (database_.shape_of(sequence, shape)) {
-        if (match(sequence, shape, candidate) &&
+        if (query && match(sequence, shape, candidate) &&
             (!found || candidate.residual_m < best_.residual_m)) {
           best_ = candidate;
           found = true;
@@ -181,6 +224,7 @@ void SequenceEngine::chain(LandmarkId id, MatchSink& sink) {
   }
   if (found) {
     ++counters_.matches;
+    extend_closure_run(best_);
     sink.on_match(best_);
   }
 }
@@ -308,15 +352,67 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
 
   best.k = k;
   best.verified_candidates = verified;
-  const Landmark& q = best.query[k - 1];
-  const Landmark& m = best.match[k - 1];
-  best.has_relative_pose = q.has_car_pose && m.has_car_pose;
-  if (best.has_relative_pose) {
+  best.aligned_pairs = k;
+  set_relative_pose(best);
+  return true;
+}
+
+void SequenceEngine::set_relative_pose(MatchEvent& event) const {
+  const Landmark& q = event.query[event.k - 1];
+  const Landmark& m = event.match[event.k - 1];
+  event.has_relative_pose = q.has_car_pose && m.has_car_pose;
+  if (event.has_relative_pose) {
     const Pose2 query_car{q.car_x, q.car_y, q.car_yaw};
     const Pose2 match_car{m.car_x, m.car_y, m.car_yaw};
-    best.relative_pose = compose(inverse(compose(best.alignment, match_car)), query_car);
+    event.relative_pose = compose(inverse(compose(event.alignment, match_car)), query_car);
   }
-  return true;
+}
+
+void SequenceEngine::extend_closure_run(MatchEvent& event) {
+  const unsigned k = event.k;
+  const auto pair_at = [&](unsigned i) {
+    return LandmarkPair{event.query[i].id, event.match[i].id};
+  };
+  // The same closure goes on when this event's last-but-one landmarks are
+  // the last pair of the run: the run keeps the earlier pairs too.
+  const bool continues = !closure_run_.empty() && closure_run_.back().query == event.query[k - 2].id &&
+                         closure_run_.back().match == event.match[k - 2].id;
+  if (!continues) {
+    closure_run_.clear();
+    for (unsigned i = 0; i < k; ++i) (void)closure_run_.push_back(pair_at(i));
+    return;
+  }
+  for (unsigned i = 0; i < k; ++i) {
+    const LandmarkPair pair = pair_at(i);
+    bool known = false;
+    for (const LandmarkPair& p : closure_run_) known = known || p.query == pair.query;
+    if (known) continue;
+    if (closure_run_.full()) closure_run_.erase_at(0);
+    (void)closure_run_.push_back(pair);
+  }
+  std::array<Eigen::Vector2d, kMaxRunPairs> from{}, to{};
+  std::size_t n = 0;
+  for (const LandmarkPair& p : closure_run_) {
+    const Landmark* q = database_.landmark(p.query);
+    const Landmark* m = database_.landmark(p.match);
+    if (q == nullptr || m == nullptr) continue;
+    from[n] = {m->x, m->y};
+    to[n] = {q->x, q->y};
+    ++n;
+  }
+  if (n <= k) return;
+  const RigidFit fit = fit_rigid_2d({from.data(), n}, {to.data(), n});
+  if (fit.rms_residual > config_.match.max_residual_m) {
+    // The run no longer fits one rigid transform: start again from here.
+    closure_run_.clear();
+    for (unsigned i = 0; i < k; ++i) (void)closure_run_.push_back(pair_at(i));
+    return;
+  }
+  event.alignment = fit.transform;
+  event.residual_m = fit.rms_residual;
+  event.aligned_pairs = static_cast<unsigned>(n);
+  set_relative_pose(event);
+  ++counters_.closures_extended;
 }
 
 }  // namespace markloop

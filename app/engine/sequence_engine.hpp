@@ -36,6 +36,9 @@ struct MatchEvent {
   bool has_relative_pose = false;
   Pose2 relative_pose{};
   double residual_m = 0.0;  // RMS of the aligned landmark positions
+  // Landmark pairs behind `alignment`: k, or more when this match continues
+  // the previous one (the same closure, a row further on).
+  unsigned aligned_pairs = 0;
   double score = 0.0;       // 1 = distances agree exactly, 0 = at tolerance
   unsigned verified_candidates = 0;
 
@@ -56,6 +59,10 @@ struct EngineCounters {
   std::uint64_t frames_out_of_order = 0;
   std::uint64_t observations_over_limit = 0;
   std::uint64_t landmarks_released = 0;
+  std::uint64_t passing_frames_forgotten = 0;  // history too short: oldest frame used
+  // Flushed before the car reached them: stored for later visits, not
+  // queried, since no frame shows the car at them.
+  std::uint64_t landmarks_flushed_ahead = 0;
   std::uint64_t landmarks_unchained = 0;  // row already full
   std::uint64_t pending_overflows = 0;
   std::uint64_t chain_breaks = 0;
@@ -70,6 +77,7 @@ struct EngineCounters {
   std::uint64_t loaded_rejected = 0;            // disagreeing with the confirmed alignment
   std::uint64_t candidate_limit_hits = 0;
   std::uint64_t matches = 0;
+  std::uint64_t closures_extended = 0;  // alignment fitted on a run of matches
 };
 
 class SequenceEngine {
@@ -107,10 +115,21 @@ class SequenceEngine {
   };
 
   void commit_and_release(double now, bool all, MatchSink& sink);
+  void remember_frame(const FrameInput& frame);
+  // Makes the frame in which the car drew level with the landmark the one
+  // that represents it; false (the latest frame then) if it has not yet.
+  bool represent_by_passing_frame(Landmark& landmark);
   void release(Landmark landmark, MatchSink& sink);
-  void chain(LandmarkId id, MatchSink& sink);
+  // Stores the sequences ending at `id`; queries them first when `query`.
+  void chain(LandmarkId id, bool query, MatchSink& sink);
   // Best verified match of one new sequence; false when there is none.
   bool match(std::span<const LandmarkId> query, const SequenceShape& shape, MatchEvent& best);
+  void set_relative_pose(MatchEvent& event) const;
+  // When `event` continues the previous closure (its sequences overlap the
+  // previous ones but for one row), refits its alignment on every pair of the
+  // run: k points nearly in a line along the road leave the rotation, and so
+  // the pose at the car, the least certain; a few more rows pin it down.
+  void extend_closure_run(MatchEvent& event);
 
   EngineConfig config_;
   LandmarkTracker tracker_;
@@ -126,6 +145,32 @@ class SequenceEngine {
   FixedVector<Landmark, kMaxPending> pending_;    // sorted by station
   bool have_released_ = false;
   Landmark last_released_{};
+
+  // The car's recent frames, one every `history_spacing_m_` of driving, so
+  // that a released landmark can be represented by the frame in which the car
+  // passed it: the same spot on every visit, whatever the detection range.
+  struct PassingFrame {
+    FrameIndex frame = 0;
+    double t = 0.0;
+    double odometer = 0.0;
+    Pose2 pose{};
+  };
+  static constexpr std::size_t kFrameHistory = 1024;
+  std::array<PassingFrame, kFrameHistory> history_{};
+  std::size_t history_oldest_ = 0;
+  std::size_t history_size_ = 0;
+  double history_spacing_m_ = 0.0;
+  const PassingFrame& history_at(std::size_t i) const {
+    return history_[(history_oldest_ + i) % kFrameHistory];
+  }
+
+  // Landmark pairs of the current run of matches continuing each other.
+  struct LandmarkPair {
+    LandmarkId query = kNoLandmark;
+    LandmarkId match = kNoLandmark;
+  };
+  static constexpr std::size_t kMaxRunPairs = 6;
+  FixedVector<LandmarkPair, kMaxRunPairs> closure_run_;
 
   // The last k rows, oldest first.
   FixedVector<Row, kMaxSequenceLength> rows_;

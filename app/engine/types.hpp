@@ -34,6 +34,9 @@ struct Observation {
   Label label = 0;
   float x = 0.0f;  // world frame, metres
   float y = 0.0f;
+  // Relative precision of the position (inverse variance, any scale, > 0):
+  // a camera places near markings better than far ones.
+  float weight = 1.0f;
 };
 
 struct FrameInput {
@@ -49,7 +52,10 @@ struct Landmark {
   Label label = 0;
   std::uint16_t observations = 0;
   FrameIndex first_frame = 0;
-  FrameIndex last_frame = 0;  // the frame that represents the landmark
+  // The frame that represents the landmark: the one in which the car drew
+  // level with it when the pose is known (the same spot on every visit),
+  // else its last sighting.
+  FrameIndex last_frame = 0;
   float x = 0.0f;             // world position, metres
   float y = 0.0f;
   float car_x = 0.0f;  // the car's pose at last_frame, when known

@@ -78,7 +78,7 @@ TEST_CASE("two laps: loop detections reach the bus, E2E-protected, with the rela
   CHECK(ecu.counters().loop_detections > 5);
   CHECK(bus.detections == ecu.counters().loop_detections);
   const dbc::LoopDetection& d = bus.last_detection;
-  CHECK(d.sequence_length == 4);
+  CHECK(d.sequence_length == ecu_engine_defaults().chain.k);
   CHECK(d.pose_valid);
   CHECK(std::abs(d.pose_dx_m) < 0.3);
   CHECK(std::abs(d.pose_dy_m) < 0.3);

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "drivers/can/candump_log.hpp"
+#include "ecu/config.hpp"
 #include "ecu/map_store.hpp"
 #include "ecu_test_support.hpp"
 #include "io/y4m.hpp"
@@ -95,7 +96,7 @@ TEST_CASE("SIGTERM and SIGINT save the map and exit 0") {
     MatchConfig match;
     DatabaseConfig capacity;
     capacity.landmark_capacity = capacity.sequence_capacity = 1024;
-    SequenceDatabase db(capacity, match, 4);
+    SequenceDatabase db(capacity, match, ecu::ecu_engine_defaults().chain.k);
     ecu::MapStore store(map.string());
     CHECK(store.load(db, match).outcome == ecu::MapLoadOutcome::kLoaded);
     CHECK(fs::exists(dir / "out.log"));

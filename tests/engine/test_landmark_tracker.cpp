@@ -1,5 +1,6 @@
 #include <catch2/catch_test_macros.hpp>
 
+#include <cmath>
 #include <vector>
 
 #include "engine/landmark_tracker.hpp"
@@ -98,4 +99,23 @@ TEST_CASE("more markings than tracks are dropped, not stored", "[tracker]") {
   tracker.observe(frame_at(0), 0, many);
   CHECK(tracker.active() == LandmarkTracker::kMaxTracks);
   CHECK(tracker.counters().observations_dropped == 100 - LandmarkTracker::kMaxTracks);
+}
+
+TEST_CASE("a landmark's position weighs each observation by its precision", "[tracker]") {
+  LandmarkTracker tracker(TrackerConfig{});
+  FixedVector<Landmark, 8> out;
+  // Far (weight 1) at x = 21, near (weight 3) at x = 20: the mean is 20.25.
+  const Observation far{2, 21.0f, 0.0f, 1.0f};
+  const Observation near{2, 20.0f, 0.4f, 3.0f};
+  const Observation no_weight{2, 20.0f, 0.0f, 0.0f};
+  tracker.observe(frame_at(0), 0, {&far, 1});
+  tracker.observe(frame_at(1), 1, {&near, 1});
+  tracker.observe(frame_at(2), 2, {&no_weight, 1});  // rejected, not a division by zero
+  tracker.observe(frame_at(20), 20, {});
+  REQUIRE(tracker.commit(2.0, false, out));
+  REQUIRE(out.size() == 1);
+  CHECK(out[0].observations == 2);
+  CHECK(std::abs(out[0].x - 20.25f) < 1e-4f);
+  CHECK(std::abs(out[0].y - 0.3f) < 1e-4f);
+  CHECK(tracker.counters().observations_rejected == 1);
 }

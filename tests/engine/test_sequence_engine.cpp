@@ -138,3 +138,70 @@ TEST_CASE("the engine rejects bad configurations", "[engine]") {
   config.match.index_bin_tolerances = 1.0;
   CHECK(validate(config) != nullptr);
 }
+
+// A straight road with one marking per row, driven twice; on the second pass
+// the odometry has turned the world by 0.5 degrees about the start, and the
+// markings' positions carry a fixed, made-up error per marking and pass.
+TEST_CASE("a landmark is represented by the frame in which the car passed it, and a run of "
+          "matches refines the pose", "[engine]") {
+  EngineConfig config;
+  config.chain.k = 3;
+  config.match.min_separation_s = 0;
+  std::vector<double> row_x;
+  for (int row = 0; row < 10; ++row) row_x.push_back(30.0 + row * 20.0 + (row % 3) * 4.0);
+  const double drift = 0.5 * 3.14159265358979323846 / 180.0;
+  const auto error_of = [](int row, int pass) {  // deterministic, up to 8 cm
+    return 0.08 * std::sin(1.7 * row + 2.9 * pass);
+  };
+
+  SequenceEngine engine(config);
+  Collector sink;
+  FrameIndex frame = 0;
+  std::vector<double> frame_car_x;
+  for (int pass = 0; pass < 2; ++pass) {
+    const double yaw = pass == 0 ? 0.0 : drift;
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    for (double car = 0; car < 260.0; car += 0.5) {
+      // The estimated pose: the true one (along x) turned by the drift.
+      FrameInput in{frame, frame / 20.0, true, {c * car, s * car, yaw}};
+      std::vector<Observation> seen;
+      for (int row = 0; row < static_cast<int>(row_x.size()); ++row) {
+        const double ahead = row_x[row] - car;
+        if (ahead < 4 || ahead > 20) continue;
+        const double x = row_x[row] + error_of(row, pass), y = error_of(row + 5, pass);
+        seen.push_back({static_cast<Label>(row % 4), static_cast<float>(c * x - s * y),
+                        static_cast<float>(s * x + c * y)});
+      }
+      engine.process_frame(in, seen, sink);
+      frame_car_x.push_back(car);
+      ++frame;
+    }
+    if (pass == 0) engine.break_chains(sink);
+  }
+  engine.flush(sink);
+
+  REQUIRE(sink.events.size() >= 6);
+  for (std::size_t i = 0; i < sink.events.size(); ++i) {
+    const MatchEvent& e = sink.events[i];
+    INFO("event " << i);
+    // The car drew level with the last marking in the query and match frames.
+    const double marking_x = e.query[e.k - 1].x;
+    CHECK(std::abs(frame_car_x[e.query_frame()] - marking_x) <= 0.6);
+    CHECK(std::abs(frame_car_x[e.match_frame()] - marking_x) <= 0.6);
+    CHECK(e.query_frame() > e.match_frame());
+    // The first match of the run rests on k pairs, later ones on more.
+    CHECK(e.aligned_pairs == (i == 0 ? e.k : std::min<unsigned>(e.k + i, 6)));
+    CHECK(e.has_relative_pose);
+    // The true relative pose is the identity shifted by where the two cars
+    // stood (the same marking, so within one frame step). Three points in a
+    // line leave the rotation loose (here 0.3 degrees, 15 cm at the car);
+    // five or more of the run pin it down.
+    const double true_dx = frame_car_x[e.query_frame()] - frame_car_x[e.match_frame()];
+    const double tolerance_m = e.aligned_pairs >= 5 ? 0.1 : 0.3;
+    const double tolerance_deg = e.aligned_pairs >= 5 ? 0.1 : 1.0;
+    CHECK(std::abs(e.relative_pose.x - true_dx) < tolerance_m);
+    CHECK(std::abs(e.relative_pose.y) < tolerance_m);
+    CHECK(std::abs(e.relative_pose.yaw) < tolerance_deg * 3.14159265358979323846 / 180.0);
+  }
+  CHECK(engine.counters().closures_extended == sink.events.size() - 1);
+}
