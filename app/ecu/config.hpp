@@ -48,10 +48,6 @@ struct ObservationGate {
 };
 
 // The engine's settings in the car:
-// - sequences of k = 3 rows: the odometry prior and the rigid fit keep
-//   look-alike places out, so the shorter sequences add true loops (at the
-//   start of a revisit, on short shared stretches) without false ones; the
-//   pose comes from the whole run of matches, not from 3 points;
 // - a landmark needs 3 sightings (the engine's default of 2 suits cleaner
 //   inputs such as the paper's data): single-frame clutter stays out;
 // - the odometry prior rejects look-alike places: within a session two
@@ -60,9 +56,11 @@ struct ObservationGate {
 //   the two sessions' frames relate;
 // - a match whose landmarks, aligned, still disagree by more than 0.3 m RMS
 //   is not sent: its relative pose would be no better than that.
+// k stays 4: at k = 3 a single session finds more loops, but across sessions
+// (a loaded map, no odometry prior) look-alike city blocks then confirm
+// wrong alignments (README, "Measured figures").
 inline EngineConfig ecu_engine_defaults() {
   EngineConfig c;
-  c.chain.k = 3;
   c.tracker.min_observations = 3;
   c.match.max_residual_m = 0.3;
   c.match.max_drift_rel = 0.02;

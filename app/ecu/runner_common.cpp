@@ -108,13 +108,15 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
     const EngineCounters& e = ecu.engine().counters();
     std::fprintf(stderr,
                  "markloop: engine %llu sequences, %llu candidates, %llu too recent, %llu residual, "
-                 "%llu drift, %llu loaded-map hypotheses, %llu loaded-map disagreeing, %llu matches\n",
+                 "%llu drift, %llu loaded-map single sequences, %llu loaded-map hypotheses, "
+                 "%llu loaded-map disagreeing, %llu matches (%llu with the pose refined over a run)\n",
                  (unsigned long long)e.sequences_created, (unsigned long long)e.candidates,
                  (unsigned long long)e.candidates_too_recent,
                  (unsigned long long)e.candidates_rejected_residual,
                  (unsigned long long)e.candidates_rejected_drift,
+                 (unsigned long long)e.loaded_single_sequences,
                  (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
-                 (unsigned long long)e.matches);
+                 (unsigned long long)e.matches, (unsigned long long)e.closures_extended);
   }
   if (options.summary_json.empty()) return;
   std::FILE* out = std::fopen(options.summary_json.c_str(), "w");

@@ -284,8 +284,18 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
     }
     const Landmark& candidate_first = *database_.landmark(candidate[0]);
     if (mc.confirm_loaded_places && candidate_first.station < 0.0) {
-      // A place of a loaded map: its alignment must agree with how the two
-      // sessions' frames are known (or about to be found) to relate.
+      // A place of a loaded map has no odometry prior: it must agree over
+      // k + 1 rows (this sequence and the one a row back, both verified)...
+      const bool continues = std::find(loaded_pairs_.begin(), loaded_pairs_.end(),
+                                       LandmarkPair{query[k - 2], candidate[k - 2]}) != loaded_pairs_.end();
+      if (loaded_pairs_.full()) loaded_pairs_.erase_at(0);
+      (void)loaded_pairs_.push_back({query[k - 1], candidate[k - 1]});
+      if (!continues) {
+        ++counters_.loaded_single_sequences;
+        return true;
+      }
+      // ...and its alignment must agree with how the two sessions' frames
+      // are known (or about to be found) to relate.
       Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
       for (unsigned i = 0; i < k; ++i) {
         query_centre += query_points[i] / k;

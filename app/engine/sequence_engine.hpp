@@ -73,6 +73,7 @@ struct EngineCounters {
   std::uint64_t candidates_too_recent = 0;
   std::uint64_t candidates_rejected_residual = 0;
   std::uint64_t candidates_rejected_drift = 0;  // beyond the odometry prior
+  std::uint64_t loaded_single_sequences = 0;    // into a loaded map, not yet over k + 1 rows
   std::uint64_t loaded_hypotheses = 0;          // first matches into a loaded map, held back
   std::uint64_t loaded_rejected = 0;            // disagreeing with the confirmed alignment
   std::uint64_t candidate_limit_hits = 0;
@@ -168,9 +169,13 @@ class SequenceEngine {
   struct LandmarkPair {
     LandmarkId query = kNoLandmark;
     LandmarkId match = kNoLandmark;
+    bool operator==(const LandmarkPair&) const = default;
   };
   static constexpr std::size_t kMaxRunPairs = 6;
   FixedVector<LandmarkPair, kMaxRunPairs> closure_run_;
+  // Last landmarks of recent verified sequences into a loaded map, so that a
+  // sequence a row further on can be seen to continue one.
+  FixedVector<LandmarkPair, 32> loaded_pairs_;
 
   // The last k rows, oldest first.
   FixedVector<Row, kMaxSequenceLength> rows_;
