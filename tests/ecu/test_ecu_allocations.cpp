@@ -11,12 +11,8 @@
 // The resident set size is sampled every 10 minutes of driving.
 #include <catch2/catch_test_macros.hpp>
 
-#include <malloc.h>
-
-#include <atomic>
 #include <cstdlib>
 #include <cstring>
-#include <new>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -27,56 +23,13 @@
 #include "perception/camera_model.hpp"
 #include "platform/os.hpp"
 
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void* __libc_memalign(std::size_t, std::size_t);
-void __libc_free(void*);
-}
-
-namespace {
-std::atomic<bool> counting{false};
-std::atomic<std::uint64_t> allocations{0};
-inline void note() {
-  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
-}
-}  // namespace
-
-extern "C" {
-void* malloc(std::size_t size) {
-  note();
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t n, std::size_t size) {
-  note();
-  return __libc_calloc(n, size);
-}
-void* realloc(void* p, std::size_t size) {
-  note();
-  return __libc_realloc(p, size);
-}
-void free(void* p) { __libc_free(p); }
-void* memalign(std::size_t alignment, std::size_t size) {
-  note();
-  return __libc_memalign(alignment, size);
-}
-void* aligned_alloc(std::size_t alignment, std::size_t size) {
-  note();
-  return __libc_memalign(alignment, size);
-}
-int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
-  note();
-  void* p = __libc_memalign(alignment, size);
-  if (p == nullptr) return ENOMEM;
-  *out = p;
-  return 0;
-}
-}
+#define MARKLOOP_COUNT_C_ALLOCATIONS 1
+#include "support/count_allocations.hpp"
 
 using namespace markloop;
 using namespace markloop::ecu;
 using namespace markloop::ecu::testing;
+using markloop::test::AllocationCounter;
 using namespace std::chrono_literals;
 
 TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays flat") {
@@ -135,12 +88,12 @@ TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays fl
   drive(0s, 130s);  // warm-up: a lap and more, every path taken once
   REQUIRE(ecu.counters().loop_detections > 0);
   const auto detections_before = ecu.counters().loop_detections;
-  counting = true;
+  AllocationCounter heap;
   drive(130s, 130s + 3600s + 20ms);  // the last sample at 60 min included
-  counting = false;
+  const std::size_t allocations = heap.stop();
 
-  INFO("allocations during the hour: " << allocations.load());
-  CHECK(allocations.load() == 0);
+  INFO("allocations during the hour: " << allocations);
+  CHECK(allocations == 0);
   CHECK(ecu.counters().frames_processed >= 2 * 36000);
   CHECK(ecu.counters().loop_detections - detections_before > 500);
   CHECK(bus.errors == 0);

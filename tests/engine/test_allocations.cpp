@@ -2,34 +2,15 @@
 // operator new is counted while the engine processes a long drive.
 #include <catch2/catch_test_macros.hpp>
 
-#include <atomic>
-#include <cstdlib>
 #include <memory>
-#include <new>
 
 #include "engine/sequence_engine.hpp"
 #include "sim/drive.hpp"
 #include "sim/world.hpp"
-
-namespace {
-std::atomic<bool> counting{false};
-std::atomic<std::size_t> allocations{0};
-
-void* counted_allocation(std::size_t size) {
-  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-}  // namespace
-
-void* operator new(std::size_t size) { return counted_allocation(size); }
-void* operator new[](std::size_t size) { return counted_allocation(size); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+#include "support/count_allocations.hpp"
 
 using namespace markloop;
+using markloop::test::AllocationCounter;
 
 namespace {
 struct CountingSink final : MatchSink {
@@ -53,19 +34,21 @@ TEST_CASE("no heap allocation after start-up over a 60 km drive", "[engine][memo
 
   sim::DriveFrame frame;
   std::size_t frames = 0;
+  AllocationCounter heap;
+  heap.pause();
   while (drive.next(frame)) {  // the simulator may allocate; it is not counted
-    counting = true;
+    heap.resume();
     engine->process_frame(frame.estimate, frame.observations, sink);
-    counting = false;
+    heap.pause();
     ++frames;
   }
-  counting = true;
+  heap.resume();
   engine->flush(sink);
-  counting = false;
+  const std::size_t allocations = heap.stop();
 
   INFO("frames " << frames << ", matches " << sink.matches);
   CHECK(frames >= 50000);
-  CHECK(allocations.load() == 0);
+  CHECK(allocations == 0);
   CHECK(sink.matches > 100);
   const DatabaseStats stats = engine->database().stats();
   CHECK(stats.sequences_evicted > 1000);
@@ -74,10 +57,9 @@ TEST_CASE("no heap allocation after start-up over a 60 km drive", "[engine][memo
 }
 
 TEST_CASE("the allocation counter sees allocations", "[memory]") {
-  counting = true;
-  const std::size_t before = allocations.load();
+  AllocationCounter heap;
   auto p = std::make_unique<int>(3);
-  counting = false;
-  CHECK(allocations.load() == before + 1);
+  const std::size_t allocations = heap.stop();
+  CHECK(allocations == 1);
   CHECK(*p == 3);
 }

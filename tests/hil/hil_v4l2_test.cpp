@@ -17,9 +17,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <algorithm>
-#include <atomic>
 #include <fstream>
-#include <new>
 #include <iostream>
 #include <string>
 #include <thread>
@@ -27,45 +25,18 @@
 
 #include "drivers/v4l2/v4l2_camera.hpp"
 #include "drivers/v4l2/v4l2_output.hpp"
+#include "support/count_allocations.hpp"
 
 using namespace markloop::v4l2;
 using namespace std::chrono_literals;
 using State = V4l2Camera::State;
 using Clock = std::chrono::steady_clock;
 
-// Every global operator new is counted while `counting` is set: streaming and
-// recovery must not touch the heap.
-namespace {
-std::atomic<bool> counting{false};
-std::atomic<std::size_t> allocations{0};
-void* counted_allocation(std::size_t size) {
-  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-}  // namespace
-void* operator new(std::size_t size) { return counted_allocation(size); }
-void* operator new[](std::size_t size) { return counted_allocation(size); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-
 namespace {
 
-// Counts heap allocations in a scope (no Catch macros inside: they allocate).
-class AllocationCounter {
- public:
-  AllocationCounter() {
-    allocations = 0;
-    counting = true;
-  }
-  ~AllocationCounter() { counting = false; }
-  std::size_t stop() {
-    counting = false;
-    return allocations.load();
-  }
-};
+// Streaming and recovery must not touch the heap: every global operator new
+// is counted while an AllocationCounter counts.
+using markloop::test::AllocationCounter;
 
 // vivid's private controls (drivers/media/test-drivers/vivid/vivid-ctrls.c),
 // as listed by `v4l2-ctl -L` on the VM kernel (Linux 6.1).

@@ -1,99 +1,32 @@
 // Proves detect() does not touch the heap: operator new is replaced, and so
 // are the C allocation functions (OpenCV allocates matrices with malloc and
 // posix_memalign), all counted while frames are processed.
-#include <atomic>
 #include <cstdlib>
-#include <new>
 
 #include <catch2/catch_test_macros.hpp>
 
 #include "perception/marking_detector.hpp"
 #include "synthetic_road.hpp"
 
-// AddressSanitizer owns malloc: under it only operator new is counted (the
-// plain build counts everything).
-#if defined(__SANITIZE_ADDRESS__)
-#define MARKLOOP_COUNT_C_ALLOCATIONS 0
-#else
+// The C functions too, except under AddressSanitizer (it owns malloc).
 #define MARKLOOP_COUNT_C_ALLOCATIONS 1
-#endif
-
-extern "C" {
-void* __libc_malloc(std::size_t);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void* __libc_memalign(std::size_t, std::size_t);
-void __libc_free(void*);
-}
-
-namespace {
-std::atomic<bool> counting{false};
-std::atomic<std::size_t> allocations{0};
-void count() {
-  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
-}
-}  // namespace
-
-#if MARKLOOP_COUNT_C_ALLOCATIONS
-extern "C" {
-void* malloc(std::size_t size) {
-  count();
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t n, std::size_t size) {
-  count();
-  return __libc_calloc(n, size);
-}
-void* realloc(void* p, std::size_t size) {
-  count();
-  return __libc_realloc(p, size);
-}
-void free(void* p) { __libc_free(p); }
-int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
-  count();
-  void* p = __libc_memalign(alignment, size);
-  if (p == nullptr) return ENOMEM;
-  *out = p;
-  return 0;
-}
-void* aligned_alloc(std::size_t alignment, std::size_t size) {
-  count();
-  return __libc_memalign(alignment, size);
-}
-void* memalign(std::size_t alignment, std::size_t size) {
-  count();
-  return __libc_memalign(alignment, size);
-}
-}
-#endif
-
-void* operator new(std::size_t size) {
-  count();
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) { return operator new(size); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+#include "support/count_allocations.hpp"
 
 using namespace markloop::perception;
 using markloop::perception::testing::GroundRect;
 using markloop::perception::testing::render_road;
+using markloop::test::AllocationCounter;
 
 TEST_CASE("the counters see C, C++ and OpenCV allocations", "[perception][memory]") {
-  allocations = 0;
-  counting = true;
+  AllocationCounter heap;
   void* p = std::malloc(64);
   int* q = new int(3);
   cv::Mat m(64, 64, CV_8UC1);
-  counting = false;
+  const std::size_t allocations = heap.stop();
   std::free(p);
   delete q;
   // new + malloc + the Mat's buffer; under ASan only the new.
-  CHECK(allocations.load() >= (MARKLOOP_COUNT_C_ALLOCATIONS ? 3u : 1u));
-  allocations = 0;
+  CHECK(allocations >= (markloop::test::counts_c_allocations ? 3u : 1u));
 }
 
 TEST_CASE("detect() allocates nothing, frame after frame", "[perception][memory]") {
@@ -116,14 +49,14 @@ TEST_CASE("detect() allocates nothing, frame after frame", "[perception][memory]
   }
   detector.detect(frames[0]);  // first call: nothing lazy may remain either
   std::size_t detections = 0, candidates = 0;
-  counting = true;
+  AllocationCounter heap;
   for (int round = 0; round < 10; ++round)
     for (const cv::Mat& frame : frames) {
       detections += detector.detect(frame).size();
       candidates += detector.candidates().size();
     }
-  counting = false;
-  CHECK(allocations.load() == 0);
+  const std::size_t allocations = heap.stop();
+  CHECK(allocations == 0);
   CHECK(candidates > 0);
   CHECK(detector.counters().frames == 121);
   (void)detections;

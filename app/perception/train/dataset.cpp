@@ -8,36 +8,75 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <utility>
 
 namespace markloop::perception::train {
+namespace {
 
-bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images,
-                      std::string& error) {
-  const std::string path = dir + "/annotations.csv";
-  std::ifstream in(path);
-  if (!in) {
-    error = path + ": cannot open";
+// The data lines of a CSV file (no quoting in ours), split at commas, with
+// errors as "FILE:LINE: what".
+class CsvReader {
+ public:
+  explicit CsvReader(std::string path) : path_(std::move(path)), in_(path_) {}
+
+  // Checks that the file opened and that its header line starts with
+  // `header_start`; `header` is the whole header, for the error.
+  bool read_header(const std::string& header_start, const std::string& header, std::string& error) {
+    if (!in_) {
+      error = path_ + ": cannot open";
+      return false;
+    }
+    std::string line;
+    if (!std::getline(in_, line) || line.rfind(header_start, 0) != 0) {
+      error = path_ + ":1: header must be " + header;
+      return false;
+    }
+    return true;
+  }
+
+  // The fields of the next non-empty line; false at the end of the file.
+  bool next(std::vector<std::string>& fields) {
+    std::string line;
+    while (std::getline(in_, line)) {
+      ++line_number_;
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      if (line.empty()) continue;
+      fields = split_csv_line(line);
+      return true;
+    }
     return false;
   }
-  std::string line;
-  int line_number = 1;
-  if (!std::getline(in, line) || line.rfind("image,label,x1,y1", 0) != 0) {
-    error = path + ":1: header must be image,label,x1,y1,x2,y2,x3,y3,x4,y4";
+
+  // Sets `error` for the current line; false, to be returned.
+  bool fail(const std::string& what, std::string& error) const {
+    error = path_ + ":" + std::to_string(line_number_) + ": " + what;
     return false;
   }
-  std::map<std::string, AnnotatedImage> by_name;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty()) continue;
+
+ private:
+  static std::vector<std::string> split_csv_line(const std::string& line) {
     std::vector<std::string> fields;
     std::stringstream ss(line);
     std::string field;
     while (std::getline(ss, field, ',')) fields.push_back(field);
-    const auto fail = [&](const std::string& what) {
-      error = path + ":" + std::to_string(line_number) + ": " + what;
-      return false;
-    };
+    return fields;
+  }
+
+  std::string path_;
+  std::ifstream in_;
+  int line_number_ = 1;  // the header
+};
+
+}  // namespace
+
+bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images,
+                      std::string& error) {
+  CsvReader csv(dir + "/annotations.csv");
+  if (!csv.read_header("image,label,x1,y1", "image,label,x1,y1,x2,y2,x3,y3,x4,y4", error)) return false;
+  std::map<std::string, AnnotatedImage> by_name;
+  std::vector<std::string> fields;
+  while (csv.next(fields)) {
+    const auto fail = [&](const std::string& what) { return csv.fail(what, error); };
     if (fields.size() != 10) return fail("expected 10 fields, found " + std::to_string(fields.size()));
     if (fields[0].empty() || fields[0].find('/') != std::string::npos)
       return fail("bad image name '" + fields[0] + "'");
@@ -74,32 +113,13 @@ bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& image
 
 bool load_drive_annotations(const std::string& dir, int step, std::vector<AnnotatedImage>& images,
                             std::string& error) {
-  const std::string path = dir + "/visible.csv";
-  std::ifstream in(path);
-  if (!in) {
-    error = path + ": cannot open";
-    return false;
-  }
-  std::string line;
-  int line_number = 1;
-  if (!std::getline(in, line) || line.rfind("frame,id,class,x1", 0) != 0) {
-    error = path + ":1: header must be frame,id,class,x1,y1,...,x4,y4";
-    return false;
-  }
+  CsvReader csv(dir + "/visible.csv");
+  if (!csv.read_header("frame,id,class,x1", "frame,id,class,x1,y1,...,x4,y4", error)) return false;
   std::map<long, AnnotatedImage> by_frame;
   long last_frame = -1;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.empty()) continue;
-    std::vector<std::string> fields;
-    std::stringstream ss(line);
-    std::string field;
-    while (std::getline(ss, field, ',')) fields.push_back(field);
-    const auto fail = [&](const std::string& what) {
-      error = path + ":" + std::to_string(line_number) + ": " + what;
-      return false;
-    };
+  std::vector<std::string> fields;
+  while (csv.next(fields)) {
+    const auto fail = [&](const std::string& what) { return csv.fail(what, error); };
     if (fields.size() != 11) return fail("expected 11 fields, found " + std::to_string(fields.size()));
     char* end = nullptr;
     const long frame = std::strtol(fields[0].c_str(), &end, 10);
