@@ -151,14 +151,20 @@ void MarkingDetector::threshold() {
     const std::uint8_t* in = bev_.ptr<std::uint8_t>(r);
     const std::uint8_t* v = valid.ptr<std::uint8_t>(r);
     std::uint8_t* out = mask_.ptr<std::uint8_t>(r);
-    for (int c = 0; c < cols; ++c) {
-      const int c0 = std::max(0, c - half_c), c1 = std::min(cols, c + half_c + 1);
+    const auto decide = [&](int c, int c0, int c1) {
       const std::int32_t count = count_bottom[c1] - count_bottom[c0] - count_top[c1] + count_top[c0];
       const std::int32_t sum = sum_bottom[c1] - sum_bottom[c0] - sum_top[c1] + sum_top[c0];
       const std::int32_t margin = std::max(contrast_q8 * count, ratio_q8 * sum);
-      const bool paint = v[c] != 0 && in[c] * count * 256 > sum * 256 + margin;
-      out[c] = paint ? 255 : 0;
-    }
+      // Bitwise, not short-circuit: no branch, so the loop vectorises.
+      const int paint = static_cast<int>(v[c] != 0) & static_cast<int>(in[c] * count * 256 > sum * 256 + margin);
+      out[c] = static_cast<std::uint8_t>(paint * 255);
+    };
+    // Where the window lies wholly inside the row its bounds are fixed
+    // offsets, and the loop vectorises; the borders clamp them.
+    const int inner_begin = std::min(cols, half_c), inner_end = std::max(inner_begin, cols - half_c);
+    for (int c = 0; c < inner_begin; ++c) decide(c, 0, std::min(cols, c + half_c + 1));
+    for (int c = inner_begin; c < inner_end; ++c) decide(c, c - half_c, c + half_c + 1);
+    for (int c = inner_end; c < cols; ++c) decide(c, std::max(0, c - half_c), cols);
   }
 }
 
