@@ -173,19 +173,24 @@ void MarkingDetector::cut_line_junctions() {
   const int along = std::max(2, static_cast<int>(std::lround(config_.junction_along_m / config_.region.x_step_m)));
   const int across = std::max(2, static_cast<int>(std::lround(config_.junction_across_m / config_.region.y_step_m)));
   // Vertical run lengths, saturating (int16): from above, then from below.
-  for (int r = 0; r < rows; ++r) {
-    const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
-    std::int16_t* here = run_above_.data() + static_cast<std::size_t>(r) * cols;
-    const std::int16_t* up = r > 0 ? here - cols : nullptr;
+  // `previous` is the run one row back (none for the first row); written
+  // without branches so that the loop vectorises.
+  const auto extend_runs = [cols](const std::uint8_t* m, const std::int16_t* previous,
+                                  std::int16_t* here) {
+    if (previous == nullptr) {
+      for (int c = 0; c < cols; ++c) here[c] = static_cast<std::int16_t>(m[c] != 0);
+      return;
+    }
     for (int c = 0; c < cols; ++c)
-      here[c] = m[c] == 0 ? 0 : static_cast<std::int16_t>(std::min(up ? up[c] + 1 : 1, 30000));
+      here[c] = static_cast<std::int16_t>((m[c] != 0) * std::min(previous[c] + 1, 30000));
+  };
+  for (int r = 0; r < rows; ++r) {
+    std::int16_t* here = run_above_.data() + static_cast<std::size_t>(r) * cols;
+    extend_runs(mask_.ptr<std::uint8_t>(r), r > 0 ? here - cols : nullptr, here);
   }
   for (int r = rows - 1; r >= 0; --r) {
-    const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
     std::int16_t* here = run_below_.data() + static_cast<std::size_t>(r) * cols;
-    const std::int16_t* down = r + 1 < rows ? here + cols : nullptr;
-    for (int c = 0; c < cols; ++c)
-      here[c] = m[c] == 0 ? 0 : static_cast<std::int16_t>(std::min(down ? down[c] + 1 : 1, 30000));
+    extend_runs(mask_.ptr<std::uint8_t>(r), r + 1 < rows ? here + cols : nullptr, here);
   }
   // Junction pixels: on a long vertical run and on a long horizontal run.
   // They are marked in run_below_ (as -1) first and cleared with their
