@@ -190,7 +190,7 @@ TEST_CASE("a landmark is represented by the frame in which the car passed it, an
     CHECK(std::abs(frame_car_x[e.match_frame()] - marking_x) <= 0.6);
     CHECK(e.query_frame() > e.match_frame());
     // The first match of the run rests on k pairs, later ones on more.
-    CHECK(e.aligned_pairs == (i == 0 ? e.k : std::min<unsigned>(e.k + i, 6)));
+    CHECK(e.aligned_pairs == (i == 0 ? e.k : std::min(e.k + static_cast<unsigned>(i), 6u)));
     CHECK(e.has_relative_pose);
     // The true relative pose is the identity shifted by where the two cars
     // stood (the same marking, so within one frame step). Three points in a
