@@ -202,6 +202,14 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
   json_spread(f, "processing_s", loops.processing_s);
   std::fputc(',', f);
   json_spread(f, "since_query_frame_s", loops.since_query_frame_s);
+  std::fprintf(f, ",\"missed_stretches\":[");
+  for (std::size_t i = 0; i < e.missed_stretches.size(); ++i) {
+    const replay::MissedStretch& m = e.missed_stretches[i];
+    std::fprintf(f, "%s{\"from_m\":%zu,\"to_m\":%zu,\"frames\":[%zu,%zu],\"first_visit_frames\":[%zu,%zu]}",
+                 i > 0 ? "," : "", m.index * 100, (m.index + 1) * 100, m.first_frame, m.last_frame,
+                 m.first_visit_from, m.first_visit_to);
+  }
+  std::fprintf(f, "]");
   std::fprintf(f, ",\"events\":[");
   for (std::size_t i = 0; i < loops.outcomes.size(); ++i) {
     const LoopOutcome& l = loops.outcomes[i];
@@ -332,6 +340,9 @@ int main(int argc, char** argv) {
   std::printf("  %-34s %zu of %zu (%s)\n", "revisited 100 m stretches detected",
               e.revisit_segments_detected, e.revisit_segments,
               percent_text(e.revisit_segments_detected, e.revisit_segments).c_str());
+  for (const replay::MissedStretch& m : e.missed_stretches)
+    std::printf("    missed %zu..%zu m: frames %zu..%zu revisit frames %zu..%zu\n", m.index * 100,
+                (m.index + 1) * 100, m.first_frame, m.last_frame, m.first_visit_from, m.first_visit_to);
   if (e.pose_errors > 0) {
     std::printf("  %-34s %.3f m, %.2f deg\n", "relative pose error, mean", e.translation_error_mean_m,
                 e.rotation_error_mean_deg);

@@ -24,6 +24,7 @@ TruthJudge::TruthJudge(std::vector<Pose2> truth, double radius_m, double min_sep
   const auto key = [](std::int64_t cx, std::int64_t cy) { return cx * 2654435761LL + cy; };
   std::unordered_map<std::int64_t, std::vector<std::size_t>> grid;
   revisit_.assign(truth_.size(), false);
+  revisited_frame_.assign(truth_.size(), 0);
   segment_.resize(truth_.size());
   for (std::size_t i = 0; i < truth_.size(); ++i) {
     segment_[i] = static_cast<std::size_t>(travelled[i] / kSegmentLength_m);
@@ -36,6 +37,7 @@ TruthJudge::TruthJudge(std::vector<Pose2> truth, double radius_m, double min_sep
           if (travelled[i] - travelled[j] >= min_separation_m &&
               std::hypot(truth_[i].x - truth_[j].x, truth_[i].y - truth_[j].y) <= radius_m_) {
             revisit_[i] = true;
+            revisited_frame_[i] = j;
             break;
           }
         }
@@ -98,7 +100,25 @@ Evaluation TruthJudge::evaluate(const std::vector<FramePair>& pairs,
   for (std::size_t s = 0; s < segments; ++s) {
     if (!segment_revisited[s]) continue;
     ++e.revisit_segments;
-    if (segment_detected[s]) ++e.revisit_segments_detected;
+    if (segment_detected[s]) {
+      ++e.revisit_segments_detected;
+      continue;
+    }
+    MissedStretch missed;
+    missed.index = s;
+    bool first = true;
+    for (std::size_t i = 0; i < truth_.size(); ++i) {
+      if (segment_[i] != s || !revisit_[i]) continue;
+      if (first) {
+        missed.first_frame = i;
+        missed.first_visit_from = missed.first_visit_to = revisited_frame_[i];
+        first = false;
+      }
+      missed.last_frame = i;
+      missed.first_visit_from = std::min(missed.first_visit_from, revisited_frame_[i]);
+      missed.first_visit_to = std::max(missed.first_visit_to, revisited_frame_[i]);
+    }
+    e.missed_stretches.push_back(missed);
   }
   return e;
 }

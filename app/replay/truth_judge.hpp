@@ -12,12 +12,22 @@
 
 namespace markloop::replay {
 
+// A revisited 100 m stretch without a correct detection, and where its
+// revisiting frames were first driven (to tell a miss of the detector from a
+// stretch whose first visit came before any sequence could exist).
+struct MissedStretch {
+  std::size_t index = 0;  // stretch i covers [100 i, 100 (i + 1)) m of the drive
+  std::size_t first_frame = 0, last_frame = 0;                  // its revisiting frames
+  std::size_t first_visit_from = 0, first_visit_to = 0;         // the earlier frames they revisit
+};
+
 struct Evaluation {
   std::size_t correct = 0;
   std::size_t wrong = 0;
   std::size_t unjudged = 0;          // a frame beyond the truth file
   std::size_t revisit_segments = 0;  // 100 m stretches of road driven before
   std::size_t revisit_segments_detected = 0;
+  std::vector<MissedStretch> missed_stretches;
   // Relative pose error of the correct matches that carry a relative pose.
   std::size_t pose_errors = 0;
   double translation_error_mean_m = 0.0;
@@ -62,6 +72,7 @@ class TruthJudge {
   std::vector<Pose2> truth_;
   double radius_m_;
   std::vector<bool> revisit_;          // per frame
+  std::vector<std::size_t> revisited_frame_;  // per revisiting frame: the earlier frame it revisits
   std::vector<std::size_t> segment_;   // per frame: index of its 100 m stretch
 };
 

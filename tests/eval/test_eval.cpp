@@ -86,6 +86,21 @@ TEST_CASE("loop detections are judged against the truth") {
   // within 5 m of the start.
   CHECK(e.revisit_segments == 5);
   CHECK(e.revisit_segments_detected == 1);
+  // The other four are listed, each with the earlier frames it revisits.
+  REQUIRE(e.missed_stretches.size() == 4);
+  for (std::size_t i = 0; i < e.missed_stretches.size(); ++i) {
+    const replay::MissedStretch& m = e.missed_stretches[i];
+    INFO("missed stretch " << m.index);
+    if (i > 0) CHECK(m.index > e.missed_stretches[i - 1].index);
+    CHECK(m.first_frame <= m.last_frame);
+    CHECK(m.first_visit_from <= m.first_visit_to);
+    CHECK(m.first_visit_to < m.first_frame);
+    bool earlier_nearby = false;
+    for (std::size_t j = m.first_visit_from; j <= m.first_visit_to; ++j)
+      earlier_nearby = earlier_nearby || std::hypot(route[m.first_frame].x - route[j].x,
+                                                    route[m.first_frame].y - route[j].y) <= 5.0;
+    CHECK(earlier_nearby);
+  }
   REQUIRE(e.pose_errors == 1);
   // True relative pose (3, 0, 0): the car at the query is 3 m ahead of the
   // car at the match. The reverse convention would give an error of 6 m.
