@@ -156,10 +156,10 @@ void SequenceEngine::commit_and_release(double now, bool all, MatchSink& sink) {
 }
 
 void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
-  bool query = true;
+  bool may_match = true;
   if (landmark.has_car_pose) {
-    query = represent_by_passing_frame(landmark);
-    if (!query) ++counters_.landmarks_flushed_ahead;
+    may_match = represent_by_passing_frame(landmark);
+    if (!may_match) ++counters_.landmarks_flushed_ahead;
   } else {
     // No odometry: the travelled distance is the path through the markings.
     landmark.station =
@@ -184,10 +184,10 @@ void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
     ++counters_.landmarks_unchained;
     return;
   }
-  if (rows_.size() == chain_config.k) chain(id, query, sink);
+  if (rows_.size() == chain_config.k) chain(id, may_match, sink);
 }
 
-void SequenceEngine::chain(LandmarkId id, bool query, MatchSink& sink) {
+void SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {
   const unsigned k = config_.chain.k;
   // One landmark from each earlier row, then the new one: every combination,
   // so a marking missed on one lane leaves the chains through other lanes.
@@ -208,7 +208,7 @@ void SequenceEngine::chain(LandmarkId id, bool query, MatchSink& sink) {
       // One shape serves the query and the insertion.
       SequenceShape shape;
       if (database_.shape_of(sequence, shape)) {
-        if (query && match(sequence, shape, candidate) &&
+        if (may_match && match(sequence, shape, candidate) &&
             (!found || candidate.residual_m < best_.residual_m)) {
           best_ = candidate;
           found = true;

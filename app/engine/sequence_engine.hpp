@@ -121,8 +121,9 @@ class SequenceEngine {
   // that represents it; false (the latest frame then) if it has not yet.
   bool represent_by_passing_frame(Landmark& landmark);
   void release(Landmark landmark, MatchSink& sink);
-  // Stores the sequences ending at `id`; queries them first when `query`.
-  void chain(LandmarkId id, bool query, MatchSink& sink);
+  // Stores the sequences ending at `id`; looks for their matches first when
+  // `may_match`.
+  void chain(LandmarkId id, bool may_match, MatchSink& sink);
   // Best verified match of one new sequence; false when there is none.
   bool match(std::span<const LandmarkId> query, const SequenceShape& shape, MatchEvent& best);
   void set_relative_pose(MatchEvent& event) const;
