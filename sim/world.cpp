@@ -295,7 +295,8 @@ bool parse_class_weights(std::string_view text, std::array<double, kClassCount>&
     text = comma == std::string_view::npos ? std::string_view() : text.substr(comma + 1);
     const std::size_t eq = item.find('=');
     if (eq == std::string_view::npos) {
-      error = "'" + std::string(item) + "': expected NAME=WEIGHT";
+      // append(), not operator+: GCC 12 warns falsely (-Wrestrict) on "'" + string.
+      error = std::string("'").append(item).append("': expected NAME=WEIGHT");
       return false;
     }
     const auto label = perception::marking_class_from_name(item.substr(0, eq));
@@ -307,7 +308,7 @@ bool parse_class_weights(std::string_view text, std::array<double, kClassCount>&
     char* end = nullptr;
     const double value = std::strtod(number.c_str(), &end);
     if (number.empty() || *end != '\0' || !std::isfinite(value) || value < 0) {
-      error = "'" + std::string(item) + "': weight must be a number >= 0";
+      error = std::string("'").append(item).append("': weight must be a number >= 0");
       return false;
     }
     weights[*label] = value;
