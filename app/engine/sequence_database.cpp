@@ -97,7 +97,7 @@ LandmarkId SequenceDatabase::add_landmark(const Landmark& landmark) {
     // landmark closely; a straggler whose landmark is gone is skipped by
     // sequence_live() until its own turn to be evicted.
     while (oldest_sequence_ < sequences_added_ &&
-           sequence_ids_[(oldest_sequence_ & sequence_mask_) * k_] <= evicted)
+           sequence_ids_[static_cast<std::size_t>(oldest_sequence_ & sequence_mask_) * k_] <= evicted)
       evict_oldest_sequence();
   }
   const LandmarkId id = next_landmark_id_++;
@@ -179,7 +179,7 @@ void SequenceDatabase::evict_oldest_sequence() {
 
 void SequenceDatabase::prefetch_eviction() const {
   if (sequences_added_ - oldest_sequence_ <= sequence_mask_) return;
-  const std::size_t victim = oldest_sequence_ & sequence_mask_;
+  const auto victim = static_cast<std::size_t>(oldest_sequence_ & sequence_mask_);
   prefetch(&slots_[sequence_tag_[victim] & slot_mask_]);
 }
 
