@@ -2,6 +2,8 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
+#include <utility>
 
 #include "ecu/runner.hpp"
 #include "platform/os.hpp"
@@ -135,7 +137,7 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                " \"engine_ms\": {\"median\": %.4f, \"p99\": %.4f, \"max\": %.4f},"
                " \"frame_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
                " \"latency_ms\": {\"count\": %llu, \"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
-               " \"landmarks\": %zu, \"sequences\": %zu, \"rss_bytes\": %zu}\n",
+               " \"landmarks\": %zu, \"sequences\": %zu, \"rss_bytes\": %zu,",
                mode, wall_seconds, (unsigned long long)c.frames_processed,
                (unsigned long long)c.frames_dropped, (unsigned long long)c.overruns,
                (unsigned long long)c.detections, (unsigned long long)c.loop_detections,
@@ -148,6 +150,31 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)), ms(frame.max_ns()),
                (unsigned long long)latency.count(), ms(latency.quantile_ns(0.5)),
                ms(latency.quantile_ns(0.99)), ms(latency.max_ns()), db.landmarks, db.sequences, rss);
+  // Where the engine's candidates went, and its rarer events.
+  const EngineCounters& e = ecu.engine().counters();
+  const std::pair<const char*, std::uint64_t> engine_counters[] = {
+      {"landmarks_released", e.landmarks_released},
+      {"passing_frames_forgotten", e.passing_frames_forgotten},
+      {"landmarks_flushed_ahead", e.landmarks_flushed_ahead},
+      {"chain_breaks", e.chain_breaks},
+      {"sequences_created", e.sequences_created},
+      {"queries", e.queries},
+      {"candidates", e.candidates},
+      {"candidates_too_recent", e.candidates_too_recent},
+      {"candidates_rejected_residual", e.candidates_rejected_residual},
+      {"candidates_rejected_drift", e.candidates_rejected_drift},
+      {"loaded_single_sequences", e.loaded_single_sequences},
+      {"loaded_hypotheses", e.loaded_hypotheses},
+      {"loaded_rejected", e.loaded_rejected},
+      {"candidate_limit_hits", e.candidate_limit_hits},
+      {"matches", e.matches},
+      {"closures_extended", e.closures_extended},
+  };
+  std::fprintf(out, " \"engine\": {");
+  for (std::size_t i = 0; i < std::size(engine_counters); ++i)
+    std::fprintf(out, "%s\"%s\": %llu", i > 0 ? ", " : "", engine_counters[i].first,
+                 (unsigned long long)engine_counters[i].second);
+  std::fprintf(out, "}}\n");
   std::fclose(out);
 }
 
