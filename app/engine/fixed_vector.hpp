@@ -24,6 +24,13 @@ class FixedVector {
     items_[size_++] = value;
     return true;
   }
+  // Appends a default element and returns it, to be filled in place (no
+  // copy of a large element). Precondition: !full().
+  T& push_back_slot() {
+    assert(size_ < Capacity);
+    items_[size_] = T{};
+    return items_[size_++];
+  }
   void pop_back() {
     assert(size_ > 0);
     --size_;

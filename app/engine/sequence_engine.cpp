@@ -222,11 +222,29 @@ void SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {
     if (r + 1 >= k) break;
     ++choice[r];
   }
+  // Matches into a loaded map held back until its alignment was confirmed
+  // (by a sequence ending at this landmark) go out first, oldest first.
+  for (const MatchEvent& held : confirmed_matches_) {
+    ++counters_.matches;
+    ++counters_.loaded_hypotheses_sent;
+    sink.on_match(held);
+  }
+  confirmed_matches_.clear();
   if (found) {
     ++counters_.matches;
     extend_closure_run(best_);
     sink.on_match(best_);
   }
+}
+
+void SequenceEngine::hold_for_release(const MatchEvent& held) {
+  // One per query landmark: the best fitting.
+  for (MatchEvent& queued : confirmed_matches_) {
+    if (queued.query[queued.k - 1].id != held.query[held.k - 1].id) continue;
+    if (held.residual_m < queued.residual_m) queued = held;
+    return;
+  }
+  (void)confirmed_matches_.push_back(held);
 }
 
 bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from,
@@ -310,25 +328,43 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
         }
         confirmed_ = {true, fit.transform, here};
       } else {
-        // Confirmed by an earlier hypothesis that agrees and rests on other
-        // landmarks (at least a row further back along the drive).
+        // Confirmed by earlier hypotheses that agree and rest on other
+        // landmarks (at least a row further back along the drive); their
+        // matches, held back so far, are sent now.
         bool confirmed = false;
-        for (const SessionAlignment& h : hypotheses_) {
-          const double driven = here - h.station;
+        for (std::size_t h = 0; h < hypotheses_.size(); ++h) {
+          const double driven = here - hypotheses_[h].station;
           if (driven >= mc.confirm_min_gap_m && driven <= mc.confirm_within_m &&
-              agrees(h.transform, candidate_centre, query_centre, fit.transform.yaw, driven)) {
+              agrees(hypotheses_[h].transform, candidate_centre, query_centre, fit.transform.yaw,
+                     driven)) {
             confirmed = true;
-            break;
+            hold_for_release(held_matches_[h]);
           }
         }
         if (!confirmed) {
-          if (hypotheses_.full()) hypotheses_.erase_at(0);
+          if (hypotheses_.full()) {
+            hypotheses_.erase_at(0);
+            held_matches_.erase_at(0);
+          }
           hypotheses_.push_back({true, fit.transform, here});
+          MatchEvent& held = held_matches_.push_back_slot();
+          held.k = k;
+          for (unsigned i = 0; i < k; ++i) {
+            held.query[i] = best.query[i];
+            held.match[i] = *database_.landmark(candidate[i]);
+          }
+          held.alignment = fit.transform;
+          held.residual_m = fit.rms_residual;
+          held.score = std::clamp(1.0 - normalised_error / (k - 1), 0.0, 1.0);
+          held.verified_candidates = 1;
+          held.aligned_pairs = k;
+          set_relative_pose(held);
           ++counters_.loaded_hypotheses;
           return true;
         }
         confirmed_ = {true, fit.transform, here};
         hypotheses_.clear();
+        held_matches_.clear();
       }
     }
     if (mc.max_drift_rel > 0.0 && candidate_first.station >= 0.0) {

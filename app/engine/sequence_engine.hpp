@@ -75,6 +75,7 @@ struct EngineCounters {
   std::uint64_t candidates_rejected_drift = 0;  // beyond the odometry prior
   std::uint64_t loaded_single_sequences = 0;    // into a loaded map, not yet over k + 1 rows
   std::uint64_t loaded_hypotheses = 0;          // first matches into a loaded map, held back
+  std::uint64_t loaded_hypotheses_sent = 0;     // ... and sent once a later match confirmed them
   std::uint64_t loaded_rejected = 0;            // disagreeing with the confirmed alignment
   std::uint64_t candidate_limit_hits = 0;
   std::uint64_t matches = 0;
@@ -189,7 +190,11 @@ class SequenceEngine {
     Pose2 transform{};     // loaded world -> this session's world
     double station = 0.0;  // where it was last supported
   };
-  FixedVector<SessionAlignment, 16> hypotheses_;  // newest last
+  static constexpr std::size_t kMaxHypotheses = 16;
+  FixedVector<SessionAlignment, kMaxHypotheses> hypotheses_;  // newest last
+  FixedVector<MatchEvent, kMaxHypotheses> held_matches_;      // one per hypothesis
+  FixedVector<MatchEvent, kMaxHypotheses> confirmed_matches_;  // to send with this landmark
+  void hold_for_release(const MatchEvent& held);
   SessionAlignment confirmed_;
   // True when `transform` maps `from` (loaded) onto `to` (this session)
   // within the drift limits for `driven` metres.

@@ -118,6 +118,8 @@ TEST_CASE("a loaded map's places are matched once two matches agree, even in ano
       CHECK(second.counters().loaded_single_sequences >= 1);
       CHECK(second.counters().loaded_hypotheses >= 1);
       CHECK(second.counters().loaded_rejected == 0);
+      // The first matches, held back as hypotheses, went out once confirmed.
+      CHECK(second.counters().loaded_hypotheses_sent >= 1);
     }
   }
 }
