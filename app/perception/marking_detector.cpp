@@ -66,6 +66,19 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
       out[c + 1] = above[c + 1] + line;
     }
   }
+  // Pixels on the view's border or next to (or on) one the camera does not
+  // see: paint there may go on beyond what is seen.
+  at_edge_.create(rows, cols, CV_8UC1);
+  for (int r = 0; r < rows; ++r) {
+    std::uint8_t* out = at_edge_.ptr<std::uint8_t>(r);
+    for (int c = 0; c < cols; ++c) {
+      bool edge = r == 0 || c == 0 || r == rows - 1 || c == cols - 1;
+      for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr)
+        for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc)
+          edge = edge || valid.ptr<std::uint8_t>(rr)[cc] == 0;
+      out[c] = edge ? 1 : 0;
+    }
+  }
   const std::size_t pixels = static_cast<std::size_t>(rows) * cols;
   pixel_labels_.assign(pixels, -1);
   run_above_.assign(pixels, 0);
@@ -194,7 +207,12 @@ void MarkingDetector::cut_line_junctions() {
   }
   // Junction pixels: on a long vertical run and on a long horizontal run.
   // They are marked in run_below_ (as -1) first and cleared with their
-  // 8-neighbours afterwards, so that no diagonal contact survives.
+  // 8-neighbours afterwards, so that no diagonal contact survives. Where the
+  // paint across is a long bar (a stop line, not an arrow's head), they are
+  // marked -2 and the cut reaches `margin` rows further along the line: a
+  // slanted or blurred edge of the bar would otherwise join them again.
+  const int long_bar = std::max(
+      across, static_cast<int>(std::lround(config_.junction_long_bar_m / config_.region.y_step_m)));
   bool any = false;
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
@@ -208,21 +226,26 @@ void MarkingDetector::cut_line_junctions() {
       }
       int end = c;
       while (end < cols && m[end] != 0) ++end;
-      if (end - c >= across)
+      if (end - c >= across) {
+        const std::int16_t mark = end - c >= long_bar ? -2 : -1;
         for (int k = c; k < end; ++k)
           if (above[k] + below[k] - 1 >= along) {
-            below[k] = -1;
+            below[k] = mark;
             any = true;
           }
+      }
       c = end;
     }
   }
   if (!any) return;
+  const int margin = std::max(
+      1, static_cast<int>(std::lround(config_.junction_cut_margin_m / config_.region.x_step_m)));
   for (int r = 0; r < rows; ++r) {
     const std::int16_t* below = run_below_.data() + static_cast<std::size_t>(r) * cols;
     for (int c = 0; c < cols; ++c) {
-      if (below[c] != -1) continue;
-      for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr) {
+      if (below[c] >= 0) continue;
+      const int reach = below[c] == -2 ? margin : 1;
+      for (int rr = std::max(0, r - reach); rr <= std::min(rows - 1, r + reach); ++rr) {
         std::uint8_t* m = mask_.ptr<std::uint8_t>(rr);
         for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc) m[cc] = 0;
       }
@@ -325,8 +348,11 @@ void MarkingDetector::group_parts(std::size_t part_count) {
   const int gap_rows = static_cast<int>(std::lround(config_.group_gap_along_m / region.x_step_m));
   const int max_cols = static_cast<int>(std::lround(config_.group_max_part_m / region.y_step_m));
   const int max_rows = static_cast<int>(std::lround(config_.group_max_part_m / region.x_step_m));
+  const int bar_min_cols = static_cast<int>(std::lround(config_.bar_min_width_m / region.y_step_m));
+  const int bar_max_rows = static_cast<int>(std::lround(config_.bar_max_length_m / region.x_step_m));
   const auto groupable = [&](const Part& p) {
-    return p.col1 - p.col0 < max_cols && p.row1 - p.row0 < max_rows;
+    const bool bar = p.col1 - p.col0 + 1 >= bar_min_cols && p.row1 - p.row0 + 1 <= bar_max_rows;
+    return p.col1 - p.col0 < max_cols && p.row1 - p.row0 < max_rows && !bar;
   };
   std::int32_t* parent = group_parent_.data();
   for (std::size_t i = 0; i < part_count; ++i) parent[i] = static_cast<std::int32_t>(i);
@@ -385,19 +411,15 @@ void MarkingDetector::group_parts(std::size_t part_count) {
 }
 
 bool MarkingDetector::touches_edge(const Candidate& c) const {
-  const cv::Mat& valid = birdseye_.valid();
-  if (c.row0 == 0 || c.col0 == 0 || c.row1 == valid.rows - 1 || c.col1 == valid.cols - 1)
-    return true;
-  // One pixel outside the box all round: any pixel that does not see the
-  // road means the marking may go on beyond it.
-  const int r0 = c.row0 - 1, r1 = c.row1 + 1, c0 = c.col0 - 1, c1 = c.col1 + 1;
-  const std::uint8_t* top = valid.ptr<std::uint8_t>(r0);
-  const std::uint8_t* bottom = valid.ptr<std::uint8_t>(r1);
-  for (int col = c0; col <= c1; ++col)
-    if (top[col] == 0 || bottom[col] == 0) return true;
-  for (int row = r0; row <= r1; ++row) {
-    const std::uint8_t* line = valid.ptr<std::uint8_t>(row);
-    if (line[c0] == 0 || line[c1] == 0) return true;
+  // Paint of the box next to the edge of the view: the marking may go on
+  // beyond it. The box alone would say so for every marking whose box
+  // corner reaches into the unseen corners of the view.
+  for (int row = c.row0; row <= c.row1; ++row) {
+    const std::uint8_t* paint = mask_.ptr<std::uint8_t>(row);
+    const std::uint8_t* edge = at_edge_.ptr<std::uint8_t>(row);
+    int touching = 0;
+    for (int col = c.col0; col <= c.col1; ++col) touching |= paint[col] & edge[col];
+    if (touching != 0) return true;
   }
   return false;
 }

@@ -62,6 +62,12 @@ struct DetectorConfig {
   // meeting a lane line, the crossing is cut so the two come apart.
   float junction_along_m = 1.0f;
   float junction_across_m = 1.5f;
+  // Where the paint across is a bar at least junction_long_bar_m long (a
+  // stop line, not an arrow's head), the cut reaches junction_cut_margin_m
+  // further along the line: a slanted or blurred edge of the bar would
+  // otherwise join the two again.
+  float junction_long_bar_m = 2.5f;
+  float junction_cut_margin_m = 0.15f;
   // Parts whose boxes come closer than this (along, across the road) form one
   // marking; only parts up to group_max_part_m either way are grouped
   // (letters, digits, stripes): arrows are whole already, and lines and
@@ -69,6 +75,10 @@ struct DetectorConfig {
   float group_gap_along_m = 0.6f;
   float group_gap_across_m = 0.35f;
   float group_max_part_m = 3.2f;
+  // Bars across the road (stop lines: wide across, short along) are whole
+  // markings: grouped, they would swallow lane-line ends and shadow specks.
+  float bar_min_width_m = 2.0f;
+  float bar_max_length_m = 1.0f;
   float max_marking_length_m = 9.0f;  // larger groups are not markings (cars, shadows' edges)
   float max_marking_width_m = 9.0f;
   float min_score = 0.5f;  // below: rejected even if a marking class wins
@@ -161,6 +171,7 @@ class MarkingDetector {
   cv::Mat mask_;      // CV_8UC1 paint mask
   cv::Mat integral_;        // CV_32SC1 (rows+1) x (cols+1): bird's-eye sums
   cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (fixed)
+  cv::Mat at_edge_;         // CV_8UC1: 1 where a pixel borders what the camera does not see (fixed)
   std::vector<std::int16_t> run_above_;     // paint run length down to each pixel
   std::vector<std::int16_t> run_below_;     // ... and from it downwards
   std::vector<std::int32_t> pixel_labels_;  // provisional label per pixel, -1 none
