@@ -96,18 +96,31 @@ void SequenceEngine::remember_frame(const FrameInput& frame) {
 
 bool SequenceEngine::represent_by_passing_frame(Landmark& landmark) {
   if (history_size_ == 0) return false;
-  // First remembered frame at or past the landmark's station (odometers rise).
-  std::size_t lo = 0, hi = history_size_;
-  while (lo < hi) {
-    const std::size_t mid = (lo + hi) / 2;
-    if (history_at(mid).odometer < landmark.station) lo = mid + 1;
-    else hi = mid;
+  // The car's closest approach to the landmark among the frames remembered
+  // around its station: level with it on a straight road, and still the
+  // same spot on every visit where the car turns away at a corner (where
+  // "odometer = station" would pick a point metres down the other street).
+  const double window_m = kPassingWindow_m;
+  std::size_t best = history_size_;
+  double best_sq = 0.0;
+  for (std::size_t i = 0; i < history_size_; ++i) {
+    const PassingFrame& f = history_at(i);
+    if (std::abs(f.odometer - landmark.station) > window_m) continue;
+    const double dx = f.pose.x - landmark.x, dy = f.pose.y - landmark.y;
+    const double d_sq = dx * dx + dy * dy;
+    if (best == history_size_ || d_sq < best_sq) {
+      best = i;
+      best_sq = d_sq;
+    }
   }
-  const bool passed = lo < history_size_;
-  if (!passed) lo = history_size_ - 1;
-  if (lo == 0 && history_size_ == kFrameHistory && history_at(0).odometer > landmark.station)
-    ++counters_.passing_frames_forgotten;
-  const PassingFrame& passing = history_at(lo);
+  const bool passed = history_at(history_size_ - 1).odometer >= landmark.station;
+  if (best == history_size_) {
+    // Nothing remembered that near: long gone (a crawl filled the history),
+    // or far ahead at the end of a drive.
+    if (passed) ++counters_.passing_frames_forgotten;
+    best = passed ? 0 : history_size_ - 1;
+  }
+  const PassingFrame& passing = history_at(best);
   landmark.last_frame = std::max(landmark.first_frame, passing.frame);
   landmark.t = passing.t;
   landmark.car_x = static_cast<float>(passing.pose.x);

@@ -118,8 +118,8 @@ class SequenceEngine {
 
   void commit_and_release(double now, bool all, MatchSink& sink);
   void remember_frame(const FrameInput& frame);
-  // Makes the frame in which the car drew level with the landmark the one
-  // that represents it; false (the latest frame then) if it has not yet.
+  // Makes the frame in which the car came closest to the landmark the one
+  // that represents it; false if the car has not reached it yet.
   bool represent_by_passing_frame(Landmark& landmark);
   void release(Landmark landmark, MatchSink& sink);
   // Stores the sequences ending at `id`; looks for their matches first when
@@ -159,6 +159,8 @@ class SequenceEngine {
     Pose2 pose{};
   };
   static constexpr std::size_t kFrameHistory = 1024;
+  // The closest approach is looked for this far either side of the station.
+  static constexpr double kPassingWindow_m = 10.0;
   std::array<PassingFrame, kFrameHistory> history_{};
   std::size_t history_oldest_ = 0;
   std::size_t history_size_ = 0;
