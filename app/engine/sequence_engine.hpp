@@ -59,7 +59,9 @@ struct EngineCounters {
   std::uint64_t frames_out_of_order = 0;
   std::uint64_t observations_over_limit = 0;
   std::uint64_t landmarks_released = 0;
-  std::uint64_t passing_frames_forgotten = 0;  // history too short: oldest frame used
+  // No frame remembered near a landmark's station (a crawl filled the
+  // history): the oldest one represents it.
+  std::uint64_t passing_frames_forgotten = 0;
   // Flushed before the car reached them: stored for later visits, not
   // queried, since no frame shows the car at them.
   std::uint64_t landmarks_flushed_ahead = 0;
@@ -151,7 +153,8 @@ class SequenceEngine {
 
   // The car's recent frames, one every `history_spacing_m_` of driving, so
   // that a released landmark can be represented by the frame in which the car
-  // passed it: the same spot on every visit, whatever the detection range.
+  // came closest to it: the same spot on every visit, whatever the detection
+  // range.
   struct PassingFrame {
     FrameIndex frame = 0;
     double t = 0.0;
