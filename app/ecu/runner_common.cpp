@@ -166,6 +166,7 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
       {"loaded_single_sequences", e.loaded_single_sequences},
       {"loaded_hypotheses", e.loaded_hypotheses},
       {"loaded_hypotheses_sent", e.loaded_hypotheses_sent},
+      {"loaded_rivalled", e.loaded_rivalled},
       {"loaded_rejected", e.loaded_rejected},
       {"candidate_limit_hits", e.candidate_limit_hits},
       {"matches", e.matches},

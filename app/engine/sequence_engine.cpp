@@ -342,24 +342,46 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
         confirmed_ = {true, fit.transform, here};
       } else {
         // Confirmed by earlier hypotheses that agree and rest on other
-        // landmarks (at least a row further back along the drive); their
-        // matches, held back so far, are sent now.
-        bool confirmed = false;
-        for (std::size_t h = 0; h < hypotheses_.size(); ++h) {
-          const double driven = here - hypotheses_[h].station;
-          if (driven >= mc.confirm_min_gap_m && driven <= mc.confirm_within_m &&
-              agrees(hypotheses_[h].transform, candidate_centre, query_centre, fit.transform.yaw,
-                     driven)) {
-            confirmed = true;
-            hold_for_release(held_matches_[h]);
+        // landmarks (at least a row further back along the drive), provided
+        // no rival alignment, one this match disagrees with, is as well
+        // supported: on look-alike blocks a wrong alignment can find a
+        // second match too, but not more than the true one. The matches of
+        // the agreeing hypotheses, held back so far, are sent now.
+        const auto supports = [&](const SessionAlignment& h) {
+          const double driven = here - h.station;
+          return driven >= mc.confirm_min_gap_m && driven <= mc.confirm_within_m &&
+                 agrees(h.transform, candidate_centre, query_centre, fit.transform.yaw, driven);
+        };
+        unsigned support = 0;
+        for (const SessionAlignment& h : hypotheses_) support += supports(h) ? 1 : 0;
+        unsigned rival_support = 0;
+        for (std::size_t g = 0; g < hypotheses_.size() && support > 0; ++g) {
+          const SessionAlignment& rival = hypotheses_[g];
+          if (here - rival.station > mc.confirm_within_m ||
+              agrees(fit.transform, rival.from, rival.to, rival.transform.yaw, here - rival.station))
+            continue;
+          unsigned its = 1;
+          for (std::size_t h = 0; h < hypotheses_.size(); ++h) {
+            const SessionAlignment& other = hypotheses_[h];
+            const double apart = std::abs(rival.station - other.station);
+            if (h != g && apart <= mc.confirm_within_m &&
+                agrees(rival.transform, other.from, other.to, other.transform.yaw, apart))
+              ++its;
           }
+          rival_support = std::max(rival_support, its);
         }
+        // This match plus the hypotheses it agrees with, against the rival.
+        const bool confirmed = support > 0 && support + 1 > rival_support;
+        if (support > 0 && !confirmed) ++counters_.loaded_rivalled;
+        if (confirmed)
+          for (std::size_t h = 0; h < hypotheses_.size(); ++h)
+            if (supports(hypotheses_[h])) hold_for_release(held_matches_[h]);
         if (!confirmed) {
           if (hypotheses_.full()) {
             hypotheses_.erase_at(0);
             held_matches_.erase_at(0);
           }
-          hypotheses_.push_back({true, fit.transform, here});
+          hypotheses_.push_back({true, fit.transform, here, candidate_centre, query_centre});
           MatchEvent& held = held_matches_.push_back_slot();
           held.k = k;
           for (unsigned i = 0; i < k; ++i) {

@@ -78,6 +78,7 @@ struct EngineCounters {
   std::uint64_t loaded_single_sequences = 0;    // into a loaded map, not yet over k + 1 rows
   std::uint64_t loaded_hypotheses = 0;          // first matches into a loaded map, held back
   std::uint64_t loaded_hypotheses_sent = 0;     // ... and sent once a later match confirmed them
+  std::uint64_t loaded_rivalled = 0;            // not confirmed: a rival alignment as well supported
   std::uint64_t loaded_rejected = 0;            // disagreeing with the confirmed alignment
   std::uint64_t candidate_limit_hits = 0;
   std::uint64_t matches = 0;
@@ -194,6 +195,8 @@ class SequenceEngine {
     bool valid = false;
     Pose2 transform{};     // loaded world -> this session's world
     double station = 0.0;  // where it was last supported
+    // The matched places' centres, loaded and this session's (for rivals).
+    Eigen::Vector2d from = Eigen::Vector2d::Zero(), to = Eigen::Vector2d::Zero();
   };
   static constexpr std::size_t kMaxHypotheses = 16;
   FixedVector<SessionAlignment, kMaxHypotheses> hypotheses_;  // newest last

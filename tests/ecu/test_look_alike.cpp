@@ -123,3 +123,35 @@ TEST_CASE("a loaded map's places are matched once two matches agree, even in ano
     }
   }
 }
+
+TEST_CASE("a loaded map with the same place twice is never matched: the two alignments are rivals") {
+  const auto path = std::filesystem::temp_directory_path() / "markloop-look-alike-twice.bin";
+  std::filesystem::remove(path);
+  // The map holds the layout twice, 1 km apart: every match into it has a
+  // twin that fits as well, 1 km off.
+  {
+    SequenceEngine first(config(true));
+    CountingSink sink;
+    FrameIndex frame = 0;
+    double t = 0.0;
+    drive(first, sink, layout(0.0), 0, 650, frame, t);
+    first.break_chains(sink);
+    drive(first, sink, layout(1000.0), 1000, 1650, frame, t);
+    first.flush(sink);
+    ecu::MapStore store(path.string());
+    REQUIRE_FALSE(store.save(first.database()));
+  }
+  SequenceEngine second(config(true));
+  ecu::MapStore store(path.string());
+  REQUIRE(store.load(second.mutable_database(), second.config().match).outcome ==
+          ecu::MapLoadOutcome::kLoaded);
+  CountingSink sink;
+  FrameIndex frame = 0;
+  double t = 0.0;
+  // The same layout again, in a frame shifted by 5 km: which of the two
+  // mapped copies it is cannot be told, so no place may be reported.
+  drive(second, sink, layout(5000.0), 5000, 5650, frame, t);
+  CHECK(second.counters().loaded_hypotheses >= 2);
+  CHECK(second.counters().loaded_rivalled >= 1);
+  CHECK(sink.matches == 0);
+}
