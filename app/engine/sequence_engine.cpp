@@ -100,12 +100,19 @@ bool SequenceEngine::represent_by_passing_frame(Landmark& landmark) {
   // around its station: level with it on a straight road, and still the
   // same spot on every visit where the car turns away at a corner (where
   // "odometer = station" would pick a point metres down the other street).
-  const double window_m = kPassingWindow_m;
+  // Odometers rise along the history: find where the window starts, then
+  // look only inside it.
+  std::size_t first = 0, last = history_size_;
+  while (first < last) {
+    const std::size_t mid = (first + last) / 2;
+    if (history_at(mid).odometer < landmark.station - kPassingWindow_m) first = mid + 1;
+    else last = mid;
+  }
   std::size_t best = history_size_;
   double best_sq = 0.0;
-  for (std::size_t i = 0; i < history_size_; ++i) {
+  for (std::size_t i = first; i < history_size_; ++i) {
     const PassingFrame& f = history_at(i);
-    if (std::abs(f.odometer - landmark.station) > window_m) continue;
+    if (f.odometer > landmark.station + kPassingWindow_m) break;
     const double dx = f.pose.x - landmark.x, dy = f.pose.y - landmark.y;
     const double d_sq = dx * dx + dy * dy;
     if (best == history_size_ || d_sq < best_sq) {
@@ -458,9 +465,12 @@ void SequenceEngine::extend_closure_run(MatchEvent& event) {
   // the last pair of the run: the run keeps the earlier pairs too.
   const bool continues = !closure_run_.empty() && closure_run_.back().query == event.query[k - 2].id &&
                          closure_run_.back().match == event.match[k - 2].id;
-  if (!continues) {
+  const auto start_run_here = [&] {
     closure_run_.clear();
     for (unsigned i = 0; i < k; ++i) (void)closure_run_.push_back(pair_at(i));
+  };
+  if (!continues) {
+    start_run_here();
     return;
   }
   for (unsigned i = 0; i < k; ++i) {
@@ -485,8 +495,7 @@ void SequenceEngine::extend_closure_run(MatchEvent& event) {
   const RigidFit fit = fit_rigid_2d({from.data(), n}, {to.data(), n});
   if (fit.rms_residual > config_.match.max_residual_m) {
     // The run no longer fits one rigid transform: start again from here.
-    closure_run_.clear();
-    for (unsigned i = 0; i < k; ++i) (void)closure_run_.push_back(pair_at(i));
+    start_run_here();
     return;
   }
   event.alignment = fit.transform;

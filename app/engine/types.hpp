@@ -52,8 +52,8 @@ struct Landmark {
   Label label = 0;
   std::uint16_t observations = 0;
   FrameIndex first_frame = 0;
-  // The frame that represents the landmark: the one in which the car drew
-  // level with it when the pose is known (the same spot on every visit),
+  // The frame that represents the landmark: the one in which the car came
+  // closest to it when the pose is known (the same spot on every visit),
   // else its last sighting.
   FrameIndex last_frame = 0;
   float x = 0.0f;             // world position, metres
