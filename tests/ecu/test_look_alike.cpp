@@ -4,6 +4,7 @@
 
 #include <array>
 #include <filesystem>
+#include <memory>
 #include <vector>
 
 #include "ecu/map_store.hpp"
@@ -58,6 +59,15 @@ EngineConfig config(bool prior) {
   return c;
 }
 
+// A second session's engine with the map at `path` loaded.
+std::unique_ptr<SequenceEngine> engine_with_map(const std::filesystem::path& path, bool prior) {
+  auto engine = std::make_unique<SequenceEngine>(config(prior));
+  ecu::MapStore store(path.string());
+  REQUIRE(store.load(engine->mutable_database(), engine->config().match).outcome ==
+          ecu::MapLoadOutcome::kLoaded);
+  return engine;
+}
+
 }  // namespace
 
 TEST_CASE("within a session, a look-alike place 1 km away is rejected, a true revisit is not") {
@@ -101,10 +111,8 @@ TEST_CASE("a loaded map's places are matched once two matches agree, even in ano
   }
   for (const bool prior : {false, true}) {
     INFO("confirmation " << prior);
-    SequenceEngine second(config(prior));
-    ecu::MapStore store(path.string());
-    REQUIRE(store.load(second.mutable_database(), second.config().match).outcome ==
-            ecu::MapLoadOutcome::kLoaded);
+    const auto loaded = engine_with_map(path, prior);
+    SequenceEngine& second = *loaded;
     CountingSink sink;
     FrameIndex frame = 0;
     double t = 0.0;
@@ -141,10 +149,8 @@ TEST_CASE("a loaded map with the same place twice is never matched: the two alig
     ecu::MapStore store(path.string());
     REQUIRE_FALSE(store.save(first.database()));
   }
-  SequenceEngine second(config(true));
-  ecu::MapStore store(path.string());
-  REQUIRE(store.load(second.mutable_database(), second.config().match).outcome ==
-          ecu::MapLoadOutcome::kLoaded);
+  const auto loaded = engine_with_map(path, true);
+  SequenceEngine& second = *loaded;
   CountingSink sink;
   FrameIndex frame = 0;
   double t = 0.0;
