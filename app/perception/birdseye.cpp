@@ -2,11 +2,23 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace markloop::perception {
 
+float ImageOutline::row_at(float col) const {
+  if (count == 0) return std::numeric_limits<float>::infinity();
+  if (col <= points[0][0]) return points[0][1];
+  for (std::size_t i = 1; i < count; ++i) {
+    const auto& [c0, r0] = points[i - 1];
+    const auto& [c1, r1] = points[i];
+    if (col <= c1) return c1 > c0 ? r0 + (r1 - r0) * (col - c0) / (c1 - c0) : r1;
+  }
+  return points[count - 1][1];
+}
+
 BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& region,
-                           int ignore_rows_from)
+                           const ImageOutline& hidden_below)
     : region_(region), source_cols_(camera.width()), source_rows_(camera.height()) {
   rows_ = std::max(1, static_cast<int>(std::lround((region.x_far_m - region.x_near_m) /
                                                    region.x_step_m)));
@@ -18,8 +30,6 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
   weight_x_.assign(n, 0);
   weight_y_.assign(n, 0);
   valid_ = cv::Mat::zeros(rows_, cols_, CV_8UC1);
-  const int last_row = ignore_rows_from > 0 ? std::min(ignore_rows_from, source_rows_) - 1
-                                            : source_rows_ - 1;
   for (int r = 0; r < rows_; ++r) {
     for (int c = 0; c < cols_; ++c) {
       Eigen::Vector2d pixel;
@@ -28,9 +38,12 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
         continue;
       // Bilinear reads (u, v) .. (u+1, v+1): all four must be road pixels.
       if (!(pixel.x() >= 0.0 && pixel.y() >= 0.0 && pixel.x() < source_cols_ - 1 &&
-            pixel.y() < last_row))
+            pixel.y() < source_rows_ - 1))
         continue;
       const int u = static_cast<int>(pixel.x()), v = static_cast<int>(pixel.y());
+      const float hidden_from = std::min(hidden_below.row_at(static_cast<float>(u)),
+                                         hidden_below.row_at(static_cast<float>(u + 1)));
+      if (!(static_cast<float>(v + 1) < hidden_from)) continue;
       const std::size_t i = static_cast<std::size_t>(r) * cols_ + c;
       source_row_[i] = static_cast<std::int16_t>(v);
       source_col_[i] = static_cast<std::int16_t>(u);

@@ -7,6 +7,8 @@
 // column 0 is the left edge (y_left_m), the last column the right edge.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -25,12 +27,25 @@ struct BirdsEyeRegion {
   float y_step_m = 0.04f;  // metres per output column (across the road)
 };
 
+// The car's own body (the bonnet) as the camera sees it: image pixels at or
+// below this outline are not road. A polyline of (column, row) points, left
+// to right, linear between them and flat beyond the ends; no points: the
+// whole image may be road.
+struct ImageOutline {
+  static constexpr std::size_t kMaxPoints = 16;
+  std::array<std::array<float, 2>, kMaxPoints> points{};
+  std::size_t count = 0;
+
+  // The outline's row at an image column; +infinity when there is none.
+  float row_at(float col) const;
+};
+
 class BirdsEyeView {
  public:
-  // `ignore_rows_from`: source rows at or below this are not road (the
-  // bonnet); output pixels that would read them, or read outside the image,
-  // or look above the horizon, are invalid (value 0).
-  BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& region, int ignore_rows_from = -1);
+  // Output pixels that would read the image at or below `hidden_below`, or
+  // outside the image, or above the horizon, are invalid (value 0).
+  BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& region,
+               const ImageOutline& hidden_below = {});
 
   int rows() const { return rows_; }
   int cols() const { return cols_; }

@@ -33,12 +33,40 @@ int odd_at_least_3(float value) {
   return n | 1;
 }
 
+// [column, row, column, row, ...], columns increasing: the image outline
+// below which the camera sees the car.
+bool read_outline(const cv::FileNode& node, ImageOutline& outline, std::string& error) {
+  if (!node.isSeq() || node.size() < 2 || node.size() % 2 != 0 ||
+      node.size() > 2 * ImageOutline::kMaxPoints) {
+    error = "must be a list of 1.." + std::to_string(ImageOutline::kMaxPoints) +
+            " points as [column, row, column, row, ...]";
+    return false;
+  }
+  ImageOutline read;
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const cv::FileNode value = node[static_cast<int>(i)];
+    if (!value.isReal() && !value.isInt()) {
+      error = "item " + std::to_string(i + 1) + " is not a number";
+      return false;
+    }
+    read.points[i / 2][i % 2] = static_cast<float>(static_cast<double>(value));
+  }
+  read.count = node.size() / 2;
+  for (std::size_t i = 1; i < read.count; ++i)
+    if (!(read.points[i][0] > read.points[i - 1][0])) {
+      error = "point " + std::to_string(i + 1) + ": columns must increase left to right";
+      return false;
+    }
+  outline = read;
+  return true;
+}
+
 }  // namespace
 
 MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig& config)
     : camera_(camera),
       config_(config),
-      birdseye_(camera, config.region, config.ignore_image_rows_from),
+      birdseye_(camera, config.region, config.hidden_below),
       model_(config.model != nullptr ? config.model : &builtin_marking_model()) {
   const int rows = birdseye_.rows(), cols = birdseye_.cols();
   const auto& region = config.region;
@@ -494,7 +522,14 @@ bool load_detector_config(const std::string& path, DetectorConfig& config, std::
         error = path + ": detector_ignore_image_rows_from must be a whole number";
         return false;
       }
-      c.ignore_image_rows_from = static_cast<int>(rows);
+      c.hidden_below = {};
+      c.hidden_below.points[0] = {0.0f, static_cast<float>(static_cast<int>(rows))};
+      c.hidden_below.count = 1;
+    }
+    const cv::FileNode outline = fs["detector_hidden_below"];
+    if (!outline.empty() && !read_outline(outline, c.hidden_below, error)) {
+      error = path + ": detector_hidden_below " + error;
+      return false;
     }
     if (!(c.region.x_far_m > c.region.x_near_m + c.region.x_step_m) ||
         !(c.region.y_left_m > c.region.y_right_m + c.region.y_step_m)) {

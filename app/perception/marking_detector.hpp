@@ -42,8 +42,8 @@ inline constexpr std::size_t kMaxDetections = 32;
 
 struct DetectorConfig {
   BirdsEyeRegion region;  // road area searched and its resolution
-  // Source rows at or below this one are not road (the car's bonnet); -1: none.
-  int ignore_image_rows_from = -1;
+  // Image pixels at or below this outline are the car's bonnet, not road.
+  ImageOutline hidden_below;
   // Bright paint: brighter than the mean of a window this size around it by
   // min_contrast grey levels or min_contrast_ratio of the mean, whichever is larger.
   float local_window_m = 1.6f;

@@ -1,5 +1,6 @@
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include <catch2/catch_approx.hpp>
 #include <catch2/catch_test_macros.hpp>
@@ -58,6 +59,34 @@ TEST_CASE("bird's-eye view: pixels map back to the ground points they show") {
       ++checked;
     }
   CHECK(checked > 100);
+}
+
+TEST_CASE("bird's-eye view: nothing is read from below the bonnet's outline") {
+  const CameraModel camera = default_camera_model();
+  BirdsEyeRegion region;
+  const BirdsEyeView open_view(camera, region);
+  // A bonnet rising from the image's bottom-left corner to its middle row.
+  ImageOutline bonnet;
+  const float bottom = static_cast<float>(camera.height() - 1), middle = 0.5f * bottom;
+  bonnet.points[0] = {0.0f, bottom};
+  bonnet.points[1] = {static_cast<float>(camera.width() - 1), middle};
+  bonnet.count = 2;
+  const BirdsEyeView view(camera, region, bonnet);
+  int hidden = 0, seen = 0;
+  for (int r = 0; r < view.rows(); ++r)
+    for (int c = 0; c < view.cols(); ++c) {
+      if (open_view.valid().at<std::uint8_t>(r, c) == 0) continue;
+      Eigen::Vector2d pixel;
+      REQUIRE(camera.ground_to_image({view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel));
+      const bool below = pixel.y() >= bonnet.row_at(static_cast<float>(pixel.x()));
+      const bool clear = pixel.y() + 2.0 < bonnet.row_at(static_cast<float>(pixel.x()) + 1.0f);
+      if (below) CHECK(view.valid().at<std::uint8_t>(r, c) == 0);
+      if (clear) CHECK(view.valid().at<std::uint8_t>(r, c) == 255);
+      hidden += below ? 1 : 0;
+      seen += clear ? 1 : 0;
+    }
+  CHECK(hidden > 100);
+  CHECK(seen > 100);
 }
 
 TEST_CASE("detector: a painted block is found where it lies on the road") {
@@ -160,7 +189,12 @@ TEST_CASE("Honda calibration: ground scale and detector region from honda.yaml")
   DetectorConfig config;
   REQUIRE(load_detector_config(kCameras + "honda.yaml", config, error));
   CHECK(config.region.x_far_m == Catch::Approx(16.0));
-  CHECK(config.ignore_image_rows_from == 405);
+  // The bonnet's outline: highest in the middle of the image.
+  REQUIRE(config.hidden_below.count == 10);
+  CHECK(config.hidden_below.row_at(375.0f) == Catch::Approx(401.0));
+  CHECK(config.hidden_below.row_at(0.0f) == Catch::Approx(438.0));
+  CHECK(config.hidden_below.row_at(50.0f) == Catch::Approx(433.0));
+  CHECK(config.hidden_below.row_at(900.0f) == Catch::Approx(478.0));
   // The sim camera's file has no detector keys: defaults stay.
   DetectorConfig defaults;
   REQUIRE(load_detector_config(kCameras + "sim.yaml", defaults, error));
@@ -184,5 +218,17 @@ TEST_CASE("detector config: bad values are reported with the file") {
   }
   CHECK_FALSE(load_detector_config(path, config, error));
   CHECK(error.find("detector_min_score") != std::string::npos);
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "detector_hidden_below" << std::vector<int>{0, 400, 300};
+  }
+  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK(error.find("detector_hidden_below must be a list") != std::string::npos);
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "detector_hidden_below" << std::vector<int>{0, 400, 300, 420, 200, 430};
+  }
+  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK(error.find("point 3: columns must increase") != std::string::npos);
   CHECK_FALSE(load_detector_config("/nonexistent/camera.yaml", config, error));
 }

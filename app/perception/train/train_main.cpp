@@ -75,7 +75,7 @@ struct Sample {
   int image;    // index into the images of its set
   int clip;     // real: 60-frame block; sim: -1
   bool real;
-  bool augmented;               // a shifted or rotated copy: training only
+  bool augmented;               // a shifted, rotated or mirrored copy: training only
   bool clipped;                 // cut by the edge of the view: trained on, never reported
   std::array<float, 2> centre;  // quad centre in the image, pixels
 };
@@ -135,6 +135,25 @@ bool inside(const std::array<std::array<float, 2>, 4>& quad, float x, float y) {
   return cv::pointPolygonTest(poly, cv::Point2f(x, y), false) >= 0;
 }
 
+// The class of a marking seen in a mirror (left and right swapped), or -1
+// when the mirror image is no marking (words, numbers, symbols).
+int mirror_class(int label) {
+  const auto name = [](std::string_view n) { return static_cast<int>(*marking_class_from_name(n)); };
+  static const std::array<std::pair<int, int>, 8> kPairs = {{
+      {name("leftturn"), name("rightturn")},
+      {name("rightturn"), name("leftturn")},
+      {name("forward&left"), name("forward&right")},
+      {name("forward&right"), name("forward&left")},
+      {name("forward"), name("forward")},
+      {name("diamond"), name("diamond")},
+      {name("stopline"), name("stopline")},
+      {name("crosswalk"), name("crosswalk")},
+  }};
+  for (const auto& [from, to] : kPairs)
+    if (from == label) return to;
+  return -1;
+}
+
 constexpr int kDriveStep = 5;  // every 5th frame of a drive: 2 per second at 10 fps
 
 ImageSet extract(const std::string& dir, const std::string& camera_path, bool real,
@@ -159,6 +178,8 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   cv::Mat video_grey(camera->height(), camera->width(), CV_8UC1);
   if (drive && !video.open(dir + "/frames.y4m")) fail(video.error());
   const auto& region = config.region;
+  cv::Mat mirrored_bev, mirrored_mask;  // the current image's bird's-eye view, left and right swapped
+  int mirrored_for = -1;
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     auto& image = set.images[i];
     // In range: every corner on the road inside the detector's region.
@@ -245,6 +266,17 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
         }
       };
       add(detector.birdseye_image(), detector.paint_mask(), c.col0, c.col1, s.label);
+      // An arrow seen in a mirror is its mirror class (a left turn becomes a
+      // right turn): the rare right-hand arrows learn from the many left ones.
+      if (const int mirrored = mirror_class(s.label); mirrored >= 0) {
+        if (mirrored_for != static_cast<int>(i)) {
+          cv::flip(detector.birdseye_image(), mirrored_bev, 1);
+          cv::flip(detector.paint_mask(), mirrored_mask, 1);
+          mirrored_for = static_cast<int>(i);
+        }
+        const int last = mirrored_bev.cols - 1;
+        add(mirrored_bev, mirrored_mask, last - c.col1, last - c.col0, mirrored);
+      }
     }
   }
   std::printf("%s: %d images, %zu candidates\n", dir.c_str(), loaded, set.samples.size());
@@ -458,6 +490,9 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
         if (predicted[i] != kRejectClass) break;
       }
     ++score.confusion[image.annotations[a].label + " -> " + seen];
+    if (std::getenv("MARKLOOP_TRAIN_LIST_MISSED") != nullptr)
+      std::printf("  not found: %s %s -> %s\n", image.name.c_str(),
+                  image.annotations[a].label.c_str(), seen.c_str());
   }
 }
 
