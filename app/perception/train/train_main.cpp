@@ -62,7 +62,13 @@ constexpr const char* kUsage =
     "  --hidden N          hidden units (default 64)\n"
     "  --reject-weight W   factor on the reject class's loss weight (default 1)\n"
     "  --weight-decay W    L2 weight decay (default 1e-4)\n"
-    "  --out FILE.cpp      write the model trained on all training data\n";
+    "  --out FILE.cpp      write the model trained on all training data\n"
+    "\n"
+    "Diagnostics, set in the environment:\n"
+    "  MARKLOOP_TRAIN_SHOW_MISSES=1  per evaluation, how the missed markings were classified\n"
+    "  MARKLOOP_TRAIN_LIST_MISSED=1  each missed marking: image, class, what its candidate got\n"
+    "  MARKLOOP_TRAIN_LIST_FALSE=1   each wrong detection: image, label, centre in pixels\n"
+    "  MARKLOOP_TRAIN_SHOW_FIT=1     also score the final model on the real images it was trained on\n";
 
 // The classes the targets are judged on: enough real examples to measure.
 constexpr std::array<std::string_view, 11> kMainClasses = {
@@ -81,6 +87,7 @@ struct Sample {
 };
 
 constexpr int kJitters = 6;
+const double kBlurRows = std::getenv("DBG_BLUR") ? std::atof(std::getenv("DBG_BLUR")) : 0.0;
 constexpr int kRotations = 2;
 constexpr float kMaxRotationDeg = 15.0f;
 
@@ -180,6 +187,8 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   const auto& region = config.region;
   cv::Mat mirrored_bev, mirrored_mask;  // the current image's bird's-eye view, left and right swapped
   int mirrored_for = -1;
+  cv::Mat blurred_bev, blurred_mask;
+  int blurred_for = -1;
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     auto& image = set.images[i];
     // In range: every corner on the road inside the detector's region.
@@ -276,6 +285,15 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
         }
         const int last = mirrored_bev.cols - 1;
         add(mirrored_bev, mirrored_mask, last - c.col1, last - c.col0, mirrored);
+      }
+      if (kBlurRows > 0 && s.label != kRejectClass) {
+        if (blurred_for != static_cast<int>(i)) {
+          cv::GaussianBlur(detector.birdseye_image(), blurred_bev, cv::Size(1, 0), 0.0, kBlurRows);
+          cv::GaussianBlur(detector.paint_mask(), blurred_mask, cv::Size(1, 0), 0.0, kBlurRows);
+          cv::threshold(blurred_mask, blurred_mask, 127, 255, cv::THRESH_BINARY);
+          blurred_for = static_cast<int>(i);
+        }
+        add(blurred_bev, blurred_mask, c.col0, c.col1, s.label);
       }
     }
   }
@@ -491,8 +509,9 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
       }
     ++score.confusion[image.annotations[a].label + " -> " + seen];
     if (std::getenv("MARKLOOP_TRAIN_LIST_MISSED") != nullptr)
-      std::printf("  not found: %s %s -> %s\n", image.name.c_str(),
-                  image.annotations[a].label.c_str(), seen.c_str());
+      std::printf("  not found: %s %s -> %s%s\n", image.name.c_str(),
+                  image.annotations[a].label.c_str(), seen.c_str(),
+                  image.in_range[a] ? " (in range)" : "");
   }
 }
 
