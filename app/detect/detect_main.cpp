@@ -31,7 +31,7 @@ constexpr const char* kUsage =
     "\n"
     "  --camera FILE   calibration (required)\n"
     "  --min-score S   report detections scoring at least S (0..1; default the\n"
-    "                  detector's, 0.5)\n";
+    "                  detector's, 0.6)\n";
 
 // JSON string escaping for file names.
 std::string json_string(const std::string& s) {

@@ -42,9 +42,9 @@ struct RealtimeSettings {
 // the detections CSV): markings cut by the image border (near, far) are
 // placed poorly, and low classifier confidence is mostly clutter. The score
 // gate suits the model's calibration: the current one (weight decay 3e-3)
-// gives softer scores, and 0.5..0.8 keep every simulated drive free of false
-// loops where 0.9 starved the cross-session confirmation (README, "Measured
-// figures").
+// gives softer scores; 0.6 keeps every simulated drive free of false loops
+// (0.5 let one through on two-days), where 0.9 starved the cross-session
+// confirmation (README, "Measured figures").
 struct ObservationGate {
   float min_score = 0.6f;
   float min_range_m = 5.5f;   // ahead of the vehicle reference point

@@ -515,6 +515,29 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
   }
 }
 
+bool is_main_class(std::string_view name) {
+  return std::find(kMainClasses.begin(), kMainClasses.end(), name) != kMainClasses.end();
+}
+
+// Recall and precision on the main classes, one line per score threshold:
+// the operating points a user of the detector can choose from.
+void print_operating_points(const std::vector<float>& thresholds, const std::vector<Score>& scores) {
+  std::printf("\nMain classes by score threshold (detections below it not reported):\n");
+  std::printf("%9s %7s %8s %10s %9s\n", "min score", "found", "recall", "detected", "precision");
+  for (std::size_t t = 0; t < thresholds.size(); ++t) {
+    int annotated = 0, found = 0, detected = 0;
+    for (const auto& [label, n] : scores[t].annotated)
+      if (is_main_class(label)) annotated += n;
+    for (const auto& [label, n] : scores[t].found)
+      if (is_main_class(label)) found += n;
+    for (const auto& [label, n] : scores[t].detected)
+      if (is_main_class(label)) detected += n;
+    std::printf("%9.2f %7d %7.1f%% %10d %8.1f%%\n", static_cast<double>(thresholds[t]), found,
+                annotated ? 100.0 * found / annotated : 0.0, detected,
+                detected ? 100.0 * found / detected : 0.0);
+  }
+}
+
 void print_score(const char* title, const Score& score, bool main_only_total) {
   std::printf("\n%s\n", title);
   std::printf("%-14s %10s %7s %8s %10s %7s %9s %9s %7s %8s\n", "class", "annotated", "found",
@@ -530,7 +553,7 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
               c = get(score.correct), ar = get(score.annotated_in_range),
               fr = get(score.found_in_range);
     if (a == 0 && d == 0) continue;
-    const bool main = std::find(kMainClasses.begin(), kMainClasses.end(), name) != kMainClasses.end();
+    const bool main = is_main_class(name);
     std::printf("%-14s %10d %7d %7.1f%% %10d %7d %8.1f%% %9d %7d %7.1f%%%s\n", key.c_str(), a, f,
                 a ? 100.0 * f / a : 0.0, d, c, d ? 100.0 * c / d : 0.0, ar, fr,
                 ar ? 100.0 * fr / ar : 0.0, main_only_total && !main ? "  (not a main class)" : "");
@@ -732,6 +755,8 @@ int main(int argc, char** argv) {
     const ImageSet& real = sets.front();
     print_coverage(real);
     Score pooled;
+    const std::vector<float> thresholds = {0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
+    std::vector<Score> by_threshold(thresholds.size());
     for (int fold = 0; fold < folds; ++fold) {
       const auto data = training(fold);
       const Mlp mlp = train_mlp(data, options);
@@ -739,6 +764,8 @@ int main(int argc, char** argv) {
       for (std::size_t i = 0; i < real.images.size(); ++i)
         use[i] = fold_of(train::clip_of(real.images[i].name), folds) == fold;
       evaluate(real, mlp, use, min_score, pooled);
+      for (std::size_t t = 0; t < thresholds.size(); ++t)
+        evaluate(real, mlp, use, thresholds[t], by_threshold[t]);
       std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
     }
     char title[160];
@@ -747,6 +774,7 @@ int main(int argc, char** argv) {
                   "trained without it):",
                   folds);
     print_score(title, pooled, true);
+    print_operating_points(thresholds, by_threshold);
   }
 
   const auto data = training(-1);
