@@ -87,7 +87,6 @@ struct Sample {
 };
 
 constexpr int kJitters = 6;
-const double kBlurRows = std::getenv("DBG_BLUR") ? std::atof(std::getenv("DBG_BLUR")) : 0.0;
 constexpr int kRotations = 2;
 constexpr float kMaxRotationDeg = 15.0f;
 
@@ -187,8 +186,6 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   const auto& region = config.region;
   cv::Mat mirrored_bev, mirrored_mask;  // the current image's bird's-eye view, left and right swapped
   int mirrored_for = -1;
-  cv::Mat blurred_bev, blurred_mask;
-  int blurred_for = -1;
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     auto& image = set.images[i];
     // In range: every corner on the road inside the detector's region.
@@ -285,15 +282,6 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
         }
         const int last = mirrored_bev.cols - 1;
         add(mirrored_bev, mirrored_mask, last - c.col1, last - c.col0, mirrored);
-      }
-      if (kBlurRows > 0 && s.label != kRejectClass) {
-        if (blurred_for != static_cast<int>(i)) {
-          cv::GaussianBlur(detector.birdseye_image(), blurred_bev, cv::Size(1, 0), 0.0, kBlurRows);
-          cv::GaussianBlur(detector.paint_mask(), blurred_mask, cv::Size(1, 0), 0.0, kBlurRows);
-          cv::threshold(blurred_mask, blurred_mask, 127, 255, cv::THRESH_BINARY);
-          blurred_for = static_cast<int>(i);
-        }
-        add(blurred_bev, blurred_mask, c.col0, c.col1, s.label);
       }
     }
   }
