@@ -166,8 +166,29 @@ TEST_CASE("classifier: the compiled-in model fits the features and gives probabi
   }
   CHECK(total == Catch::Approx(1.0f).margin(1e-4));
   MlpModel broken = model;
-  broken.inputs = kFeatureCount + 1;
+  broken.nets[broken.members - 1].inputs = kFeatureCount + 1;
   CHECK_FALSE(model_is_usable(broken));
+  MlpModel none = model;
+  none.members = 0;
+  CHECK_FALSE(model_is_usable(none));
+}
+
+TEST_CASE("classifier: the probabilities are the mean of the members'") {
+  const MlpModel& model = builtin_marking_model();
+  REQUIRE(model_is_usable(model));
+  Features f{};
+  for (int i = 0; i < kFeatureCount; ++i) f[i] = 0.01f * static_cast<float>(i % 17);
+  std::array<float, kClassifierOutputs> all{}, mean{};
+  classify(model, f, all);
+  for (int m = 0; m < model.members; ++m) {
+    MlpModel one;
+    one.members = 1;
+    one.nets[0] = model.nets[m];
+    std::array<float, kClassifierOutputs> p{};
+    classify(one, f, p);
+    for (int k = 0; k < kClassifierOutputs; ++k) mean[k] += p[k] / static_cast<float>(model.members);
+  }
+  for (int k = 0; k < kClassifierOutputs; ++k) CHECK(all[k] == Catch::Approx(mean[k]).margin(1e-6));
 }
 
 TEST_CASE("Honda calibration: ground scale and detector region from honda.yaml") {

@@ -12,6 +12,7 @@
 # 21 (curves, lane changes, off-road clutter) to train on; held apart for
 # evaluation only, the training-set seed 9001 and a drive of the `loop`
 # scenario with seed 7.
+# markloop-train trains its default ensemble of 3 networks (seeds 1, 101, 201).
 # Same inputs, same model: every random choice is seeded.
 set -eu
 REAL=${1:-../shared/data/roadmarks-honda}

@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <optional>
@@ -41,7 +42,8 @@ using markloop::cli::fail;
 constexpr const char* kUsage =
     "usage: markloop-train --real DIR --real-camera FILE [--sim DIR]... [--sim-drive-train DIR]...\n"
     "                      [--sim-test DIR]... [--sim-drive DIR]...\n"
-    "                      [--folds N] [--seed N] [--epochs N] [--hidden N] [--out FILE.cpp]\n"
+    "                      [--folds N] [--seed N] [--members N] [--epochs N] [--hidden N]\n"
+    "                      [--out FILE.cpp]\n"
     "\n"
     "Trains the road-marking classifier on the detector's candidates in annotated\n"
     "images and writes it as C++ source (app/perception/model/marking_model.cpp).\n"
@@ -58,6 +60,8 @@ constexpr const char* kUsage =
     "                      clip c (60-frame block) is validated in fold c mod N by a model\n"
     "                      trained without it\n"
     "  --seed N            random seed (default 1)\n"
+    "  --members N         networks in the ensemble, 1..4 (default 3): trained alike\n"
+    "                      from seeds S, S+100, ... (S: --seed); probabilities averaged\n"
     "  --epochs N          training epochs (default 60)\n"
     "  --hidden N          hidden units (default 64)\n"
     "  --reject-weight W   factor on the reject class's loss weight (default 1)\n"
@@ -290,15 +294,16 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
 }
 
 // A one-hidden-layer perceptron trained with Adam on class-weighted softmax
-// cross-entropy; the weights written out are exactly these.
+// cross-entropy; the weights written out are exactly these (subnormal values,
+// which slow float arithmetic down, are set to 0 before they are used).
 struct Mlp {
   int inputs = 0, hidden = 0, outputs = 0;
   Eigen::VectorXf mean, inv_std;
   Eigen::MatrixXf w1, w2;  // hidden x inputs, outputs x hidden
   Eigen::VectorXf b1, b2;
 
-  MlpModel view() const {
-    MlpModel m;
+  MlpNet view() const {
+    MlpNet m;
     m.inputs = inputs;
     m.hidden = hidden;
     m.outputs = outputs;
@@ -311,17 +316,20 @@ struct Mlp {
     return m;
   }
   void freeze() {
+    const auto normal = [](float v) { return std::abs(v) < std::numeric_limits<float>::min() ? 0.0f : v; };
     w1_row_major.resize(w1.size());
     w2_row_major.resize(w2.size());
     for (int j = 0; j < hidden; ++j)
-      for (int i = 0; i < inputs; ++i) w1_row_major[j * inputs + i] = w1(j, i);
+      for (int i = 0; i < inputs; ++i) w1_row_major[j * inputs + i] = normal(w1(j, i));
     for (int k = 0; k < outputs; ++k)
-      for (int j = 0; j < hidden; ++j) w2_row_major[k * hidden + j] = w2(k, j);
+      for (int j = 0; j < hidden; ++j) w2_row_major[k * hidden + j] = normal(w2(k, j));
+    for (auto* v : {&mean, &inv_std, &b1, &b2}) *v = v->unaryExpr(normal);
   }
   std::vector<float> w1_row_major, w2_row_major;
 };
 
 struct TrainOptions {
+  int members = 3;
   int epochs = 60;
   int hidden = 64;
   unsigned seed = 1;
@@ -420,6 +428,25 @@ Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& option
   }
   m.freeze();
   return m;
+}
+
+// The ensemble: members trained alike from different random starts (member
+// 0 from `seed` itself).
+std::vector<Mlp> train_members(const std::vector<const Sample*>& data, const TrainOptions& options) {
+  std::vector<Mlp> members;
+  for (int i = 0; i < options.members; ++i) {
+    TrainOptions member = options;
+    member.seed = options.seed + 100 * static_cast<unsigned>(i);
+    members.push_back(train_mlp(data, member));
+  }
+  return members;
+}
+
+MlpModel view(const std::vector<Mlp>& members) {
+  MlpModel model;
+  model.members = static_cast<int>(members.size());
+  for (std::size_t i = 0; i < members.size(); ++i) model.nets[i] = members[i].view();
+  return model;
 }
 
 // Detections vs annotations, per class. A detection is correct when its
@@ -564,9 +591,9 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
     for (const auto& [what, n] : score.confusion) std::printf("  missed: %-30s %d\n", what.c_str(), n);
 }
 
-void evaluate(const ImageSet& set, const Mlp& mlp, const std::vector<bool>& use_image,
-              float min_score, Score& score) {
-  const MlpModel model = mlp.view();
+void evaluate(const ImageSet& set, const std::vector<Mlp>& members,
+              const std::vector<bool>& use_image, float min_score, Score& score) {
+  const MlpModel model = view(members);
   std::vector<std::vector<const Sample*>> per_image(set.images.size());
   for (const Sample& s : set.samples)
     if (!s.augmented) per_image[s.image].push_back(&s);
@@ -618,8 +645,9 @@ void print_coverage(const ImageSet& set) {
     std::printf("  %-14s %4d / %4d\n", label.c_str(), tc.second, tc.first);
 }
 
-void write_model(const Mlp& m, const std::string& path, const std::string& command,
-                 std::size_t samples) {
+void write_model(const std::vector<Mlp>& members, const std::string& path,
+                 const std::string& command, std::size_t samples) {
+  const Mlp& first = members.front();
   FILE* f = markloop::cli::open_output(path);
   std::fprintf(f,
                "// GENERATED by markloop-train: do not edit. Regenerate with\n"
@@ -627,32 +655,41 @@ void write_model(const Mlp& m, const std::string& path, const std::string& comma
                "// from the repository root (build/host built; the real images are not part\n"
                "// of the repository), which renders the simulator data and runs\n"
                "//   %s\n"
-               "// %zu training candidates; %d inputs, %d hidden units (ReLU), %d outputs\n"
-               "// (the marking classes of marking_classes.hpp, then reject).\n",
-               command.c_str(), samples, m.inputs, m.hidden, m.outputs);
+               "// %zu training candidates; %zu networks of %d inputs, %d hidden units (ReLU),\n"
+               "// %d outputs (the marking classes of marking_classes.hpp, then reject).\n"
+               "// Hexadecimal floats: the trained values exactly.\n",
+               command.c_str(), samples, members.size(), first.inputs, first.hidden, first.outputs);
   std::fprintf(f,
                "#include \"perception/marking_classifier.hpp\"\n\n"
                "namespace markloop::perception {\nnamespace {\n\n"
                "constexpr int kHidden = %d;\n"
                "static_assert(kFeatureCount == %d, \"features changed: retrain\");\n"
                "static_assert(kClassifierOutputs == %d, \"classes changed: retrain\");\n\n",
-               m.hidden, m.inputs, m.outputs);
-  const auto array = [&](const char* name, const float* v, std::size_t n) {
-    std::fprintf(f, "constexpr float %s[%zu] = {", name, n);
+               first.hidden, first.inputs, first.outputs);
+  const auto array = [&](const char* name, std::size_t member, const float* v, std::size_t n) {
+    std::fprintf(f, "constexpr float %s%zu[%zu] = {", name, member, n);
     for (std::size_t i = 0; i < n; ++i)
-      std::fprintf(f, "%s%.7ef%s", i % 8 == 0 ? "\n    " : "", static_cast<double>(v[i]),
+      std::fprintf(f, "%s%af%s", i % 6 == 0 ? "\n    " : "", static_cast<double>(v[i]),
                    i + 1 < n ? ", " : "");
     std::fprintf(f, "};\n\n");
   };
-  array("kMean", m.mean.data(), m.mean.size());
-  array("kInvStd", m.inv_std.data(), m.inv_std.size());
-  array("kW1", m.w1_row_major.data(), m.w1_row_major.size());
-  array("kB1", m.b1.data(), m.b1.size());
-  array("kW2", m.w2_row_major.data(), m.w2_row_major.size());
-  array("kB2", m.b2.data(), m.b2.size());
+  for (std::size_t i = 0; i < members.size(); ++i) {
+    const Mlp& m = members[i];
+    array("kMean", i, m.mean.data(), m.mean.size());
+    array("kInvStd", i, m.inv_std.data(), m.inv_std.size());
+    array("kW1_", i, m.w1_row_major.data(), m.w1_row_major.size());
+    array("kB1_", i, m.b1.data(), m.b1.size());
+    array("kW2_", i, m.w2_row_major.data(), m.w2_row_major.size());
+    array("kB2_", i, m.b2.data(), m.b2.size());
+  }
+  std::fprintf(f, "constexpr MlpModel kModel{%zu, {{", members.size());
+  for (std::size_t i = 0; i < members.size(); ++i)
+    std::fprintf(f,
+                 "%s\n    MlpNet{kFeatureCount, kHidden, kClassifierOutputs, kMean%zu, kInvStd%zu, "
+                 "kW1_%zu, kB1_%zu, kW2_%zu, kB2_%zu}",
+                 i > 0 ? "," : "", i, i, i, i, i, i);
   std::fprintf(f,
-               "constexpr MlpModel kModel{kFeatureCount, kHidden, kClassifierOutputs, kMean, "
-               "kInvStd, kW1, kB1, kW2, kB2};\n\n"
+               "}}};\n\n"
                "}  // namespace\n\n"
                "const MlpModel& builtin_marking_model() { return kModel; }\n\n"
                "}  // namespace markloop::perception\n");
@@ -695,6 +732,8 @@ int main(int argc, char** argv) {
       options.seed = markloop::cli::parse_whole(arg, value);
     else if (arg == "--epochs")
       options.epochs = static_cast<int>(markloop::cli::parse_whole(arg, value));
+    else if (arg == "--members")
+      options.members = static_cast<int>(markloop::cli::parse_whole(arg, value));
     else if (arg == "--hidden")
       options.hidden = static_cast<int>(markloop::cli::parse_whole(arg, value));
     else if (arg == "--reject-weight")
@@ -709,6 +748,8 @@ int main(int argc, char** argv) {
   if (real_dir.empty() && sim_dirs.empty() && sim_drive_train_dirs.empty())
     fail("no training data: give --real, --sim or --sim-drive-train");
   if (!real_dir.empty() && real_camera.empty()) fail("--real needs --real-camera");
+  if (options.members < 1 || options.members > kMaxMembers)
+    fail("--members must be 1.." + std::to_string(kMaxMembers));
   if (options.hidden < 1 || options.hidden > kMaxHidden)
     fail("--hidden must be 1.." + std::to_string(kMaxHidden));
 
@@ -747,13 +788,13 @@ int main(int argc, char** argv) {
     std::vector<Score> by_threshold(thresholds.size());
     for (int fold = 0; fold < folds; ++fold) {
       const auto data = training(fold);
-      const Mlp mlp = train_mlp(data, options);
+      const std::vector<Mlp> members = train_members(data, options);
       std::vector<bool> use(real.images.size(), false);
       for (std::size_t i = 0; i < real.images.size(); ++i)
         use[i] = fold_of(train::clip_of(real.images[i].name), folds) == fold;
-      evaluate(real, mlp, use, min_score, pooled);
+      evaluate(real, members, use, min_score, pooled);
       for (std::size_t t = 0; t < thresholds.size(); ++t)
-        evaluate(real, mlp, use, thresholds[t], by_threshold[t]);
+        evaluate(real, members, use, thresholds[t], by_threshold[t]);
       std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
     }
     char title[160];
@@ -766,20 +807,20 @@ int main(int argc, char** argv) {
   }
 
   const auto data = training(-1);
-  const Mlp mlp = train_mlp(data, options);
+  const std::vector<Mlp> members = train_members(data, options);
   if (std::getenv("MARKLOOP_TRAIN_SHOW_FIT") != nullptr && !real_dir.empty()) {
     Score fit;
-    evaluate(sets.front(), mlp, std::vector<bool>(sets.front().images.size(), true), min_score, fit);
+    evaluate(sets.front(), members, std::vector<bool>(sets.front().images.size(), true), min_score, fit);
     print_score("Real images, training fit (not a validation):", fit, true);
   }
   for (const auto& test : tests) {
     print_coverage(test);
     Score score;
-    evaluate(test, mlp, std::vector<bool>(test.images.size(), true), min_score, score);
+    evaluate(test, members, std::vector<bool>(test.images.size(), true), min_score, score);
     print_score(("Simulator test set " + test.dir + " (never trained on):").c_str(), score, false);
   }
   if (!out.empty()) {
-    write_model(mlp, out, command, data.size());
+    write_model(members, out, command, data.size());
     std::printf("\nwrote %s (%zu training candidates)\n", out.c_str(), data.size());
   }
   return 0;
