@@ -7,7 +7,7 @@
 //     --> groups: parts close along and across the road (letters of a word,
 //         digits of a number, crosswalk stripes) become one candidate
 //     --> features (HOG of the normalised patch, occupancy, size)
-//     --> small MLP with an explicit reject class
+//     --> three small MLPs, probabilities averaged, with an explicit reject class
 //     --> Detection: label, score, quad in the image, centre on the ground.
 //
 // Everything is sized in the constructor; detect() does not touch the heap.
