@@ -19,6 +19,7 @@
 #include <numeric>
 #include <optional>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -536,17 +537,18 @@ bool is_main_class(std::string_view name) {
 
 // Recall and precision on the main classes, one line per score threshold:
 // the operating points a user of the detector can choose from.
-void print_operating_points(const std::vector<float>& thresholds, const std::vector<Score>& scores) {
+void print_operating_points(std::span<const float> thresholds, std::span<const Score> scores) {
   std::printf("\nMain classes by score threshold (detections below it not reported):\n");
   std::printf("%9s %7s %8s %10s %9s\n", "min score", "found", "recall", "detected", "precision");
+  const auto main_total = [](const std::map<std::string, int>& per_class) {
+    int total = 0;
+    for (const auto& [label, n] : per_class)
+      if (is_main_class(label)) total += n;
+    return total;
+  };
   for (std::size_t t = 0; t < thresholds.size(); ++t) {
-    int annotated = 0, found = 0, detected = 0;
-    for (const auto& [label, n] : scores[t].annotated)
-      if (is_main_class(label)) annotated += n;
-    for (const auto& [label, n] : scores[t].found)
-      if (is_main_class(label)) found += n;
-    for (const auto& [label, n] : scores[t].detected)
-      if (is_main_class(label)) detected += n;
+    const int annotated = main_total(scores[t].annotated), found = main_total(scores[t].found),
+              detected = main_total(scores[t].detected);
     std::printf("%9.2f %7d %7.1f%% %10d %8.1f%%\n", static_cast<double>(thresholds[t]), found,
                 annotated ? 100.0 * found / annotated : 0.0, detected,
                 detected ? 100.0 * found / detected : 0.0);
@@ -591,24 +593,36 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
     for (const auto& [what, n] : score.confusion) std::printf("  missed: %-30s %d\n", what.c_str(), n);
 }
 
+// Classifies the candidates of the images in use once, then judges them at
+// each score threshold: scores[t] gets the judgement at min_scores[t].
 void evaluate(const ImageSet& set, const std::vector<Mlp>& members,
-              const std::vector<bool>& use_image, float min_score, Score& score) {
+              const std::vector<bool>& use_image, std::span<const float> min_scores,
+              std::span<Score> scores) {
   const MlpModel model = view(members);
   std::vector<std::vector<const Sample*>> per_image(set.images.size());
   for (const Sample& s : set.samples)
     if (!s.augmented) per_image[s.image].push_back(&s);
+  std::vector<std::vector<int>> predicted(set.images.size());
+  std::vector<std::vector<float>> confidence(set.images.size());
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     if (!use_image[i]) continue;
-    std::vector<int> predicted;
-    std::vector<float> scores;
     for (const Sample* s : per_image[i]) {
       std::array<float, kClassifierOutputs> p;
       const int c = classify(model, s->features, p);
-      predicted.push_back(c);
-      scores.push_back(p[c]);
+      predicted[i].push_back(c);
+      confidence[i].push_back(p[c]);
     }
-    judge(set, static_cast<int>(i), per_image[i], predicted, min_score, scores, score);
   }
+  for (std::size_t t = 0; t < min_scores.size(); ++t)
+    for (std::size_t i = 0; i < set.images.size(); ++i)
+      if (use_image[i])
+        judge(set, static_cast<int>(i), per_image[i], predicted[i], min_scores[t], confidence[i],
+              scores[t]);
+}
+
+void evaluate(const ImageSet& set, const std::vector<Mlp>& members,
+              const std::vector<bool>& use_image, float min_score, Score& score) {
+  evaluate(set, members, use_image, std::span(&min_score, 1), std::span(&score, 1));
 }
 
 // The dataset holds every other 60-frame block: number the clips present in
@@ -783,8 +797,8 @@ int main(int argc, char** argv) {
   if (!real_dir.empty() && folds > 1) {
     const ImageSet& real = sets.front();
     print_coverage(real);
-    Score pooled;
-    const std::vector<float> thresholds = {0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
+    // The default threshold first (the full table), then the operating points.
+    const std::vector<float> thresholds = {min_score, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
     std::vector<Score> by_threshold(thresholds.size());
     for (int fold = 0; fold < folds; ++fold) {
       const auto data = training(fold);
@@ -792,9 +806,7 @@ int main(int argc, char** argv) {
       std::vector<bool> use(real.images.size(), false);
       for (std::size_t i = 0; i < real.images.size(); ++i)
         use[i] = fold_of(train::clip_of(real.images[i].name), folds) == fold;
-      evaluate(real, members, use, min_score, pooled);
-      for (std::size_t t = 0; t < thresholds.size(); ++t)
-        evaluate(real, members, use, thresholds[t], by_threshold[t]);
+      evaluate(real, members, use, thresholds, by_threshold);
       std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
     }
     char title[160];
@@ -802,8 +814,8 @@ int main(int argc, char** argv) {
                   "Real images, %d-fold cross-validation by clip (each clip judged by a model "
                   "trained without it):",
                   folds);
-    print_score(title, pooled, true);
-    print_operating_points(thresholds, by_threshold);
+    print_score(title, by_threshold.front(), true);
+    print_operating_points(std::span(thresholds).subspan(1), std::span(by_threshold).subspan(1));
   }
 
   const auto data = training(-1);
