@@ -137,7 +137,7 @@ cv::Mat draw_class(Label label, double length, double width, double texel) {
     case 5: c.image = road_text("STOP", c); break;
     case 6: c.image = road_text("PED", c); break;
     case 7: c.image = road_text("XING", c); break;
-    case 8: {  // bicycle, seen from the side, front wheel ahead
+    case 8: {  // bicycle with rider, painted upright to the driver: wheels side by side across the lane
       cv::Mat side(120, 220, CV_8U, cv::Scalar(0));
       const auto aa = cv::LINE_AA;
       cv::circle(side, {50, 80}, 34, cv::Scalar(255), 8, aa);
@@ -150,12 +150,26 @@ cv::Mat draw_class(Label label, double length, double width, double texel) {
       cv::line(side, {110, 80}, {150, 40}, cv::Scalar(255), 8, aa);
       cv::circle(side, {118, 12}, 10, cv::Scalar(255), cv::FILLED, aa);
       cv::line(side, {92, 30}, {145, 25}, cv::Scalar(255), 6, aa);
-      cv::Mat up;
-      cv::rotate(side, up, cv::ROTATE_90_COUNTERCLOCKWISE);  // front wheel at the top
-      cv::resize(up, c.image, c.image.size(), 0, 0, cv::INTER_AREA);
+      cv::resize(side, c.image, c.image.size(), 0, 0, cv::INTER_AREA);
       break;
     }
-    case 9: c.image = road_text("RXR", c); break;
+    case 9: {  // railway crossing (MUTCD): a large X, an R in the triangle either side
+      const double stroke = 0.4, r_length = 1.1, r_width = 0.55, r_inner = 0.7;
+      c.bar({-l, -w}, {l, w}, stroke);
+      c.bar({-l, w}, {l, -w}, stroke);
+      Canvas letter(r_length, r_width, texel);
+      const cv::Mat r = road_text("R", letter);
+      const int rows = r.rows, cols = r.cols;
+      const int row0 = static_cast<int>(std::lround((l - r_length / 2) / texel));
+      for (const double left : {r_inner + r_width, -r_inner}) {  // the letter's left edge
+        const int col0 = static_cast<int>(std::lround((w - left) / texel));
+        if (row0 < 0 || col0 < 0 || row0 + rows > c.image.rows || col0 + cols > c.image.cols)
+          continue;
+        cv::Mat area = c.image(cv::Rect(col0, row0, cols, rows));
+        cv::max(area, r, area);
+      }
+      break;
+    }
     case 10: c.image = road_text("25", c); break;
     case 11: c.image = road_text("35", c); break;
     case 12: c.image = road_text("40", c); break;

@@ -268,8 +268,8 @@ std::array<double, 2> marking_size(Label label, double lane_width_m, int lanes) 
     case 5: return {2.4, 2.8};   // STOP
     case 6: return {2.4, 2.2};   // PED
     case 7: return {2.4, 2.8};   // XING
-    case 8: return {3.0, 1.4};   // bicycle
-    case 9: return {2.4, 2.6};   // RXR
+    case 8: return {1.5, 1.2};   // bicycle with rider
+    case 9: return {4.6, 2.6};   // railway crossing X (R either side)
     case 10: case 11: case 12: return {2.4, 1.6};  // 25 35 40
     case 13: return {6.0, 1.0};  // diamond
     case 14: return {0.45, lane_width_m - 0.3};     // stop line
