@@ -103,10 +103,11 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
     const perception::DetectorCounters& d = ecu.detector().counters();
     std::fprintf(stderr,
                  "markloop: detector %llu parts, %llu lane lines, %llu candidates, %llu rejected, "
-                 "%llu below score, %llu bad frames\n",
+                 "%llu below score, %llu pieces of larger ones, %llu bad frames\n",
                  (unsigned long long)d.parts, (unsigned long long)d.lane_lines,
                  (unsigned long long)d.candidates, (unsigned long long)d.rejected,
-                 (unsigned long long)d.low_score, (unsigned long long)d.bad_frames);
+                 (unsigned long long)d.low_score, (unsigned long long)d.pieces,
+                 (unsigned long long)d.bad_frames);
     const EngineCounters& e = ecu.engine().counters();
     std::fprintf(stderr,
                  "markloop: engine %llu sequences, %llu candidates, %llu too recent, %llu residual, "

@@ -135,11 +135,17 @@ std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
   cut_line_junctions();
   const std::size_t part_count = label_parts();
   group_parts(part_count);
+  for (std::size_t i = 0; i < candidate_count_; ++i) classify(candidates_[i]);
   for (std::size_t i = 0; i < candidate_count_; ++i) {
-    Candidate& candidate = candidates_[i];
-    classify(candidate);
+    const Candidate& candidate = candidates_[i];
     if (candidate.predicted == kRejectClass) {
       ++counters_.rejected;
+      continue;
+    }
+    // Parts too large to group (a railway X) are never grouped with the
+    // pieces inside them; reported, a piece would be a second landmark.
+    if (is_piece_of_larger(candidates(), i)) {
+      ++counters_.pieces;
       continue;
     }
     if (candidate.clipped && !config_.report_clipped) {
@@ -436,6 +442,20 @@ void MarkingDetector::group_parts(std::size_t part_count) {
   }
   candidate_count_ = kept;
   counters_.candidates += kept;
+}
+
+bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index) {
+  const Candidate& c = candidates[index];
+  for (std::size_t j = 0; j < candidates.size(); ++j) {
+    const Candidate& outer = candidates[j];
+    if (j == index || (outer.predicted != c.predicted && !outer.clipped)) continue;
+    const bool inside = outer.col0 <= c.col0 && c.col1 <= outer.col1 && outer.row0 <= c.row0 &&
+                        c.row1 <= outer.row1;
+    const bool larger = (outer.col1 - outer.col0) * (outer.row1 - outer.row0) >
+                        (c.col1 - c.col0) * (c.row1 - c.row0);
+    if (inside && larger) return true;
+  }
+  return false;
 }
 
 bool MarkingDetector::touches_edge(const Candidate& c) const {

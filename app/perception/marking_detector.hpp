@@ -109,6 +109,7 @@ struct DetectorCounters {
   std::uint64_t clipped = 0;             // groups cut by the region's or the image's edge
   std::uint64_t rejected = 0;            // classifier said: not a marking
   std::uint64_t low_score = 0;           // marking class below min_score
+  std::uint64_t pieces = 0;              // inside a larger marking (is_piece_of_larger)
   std::uint64_t detections = 0;
   std::uint64_t detections_dropped = 0;  // over kMaxDetections in one frame
 };
@@ -126,6 +127,12 @@ struct Candidate {
 };
 inline constexpr std::size_t kMaxCandidates = 64;
 inline constexpr std::size_t kMaxParts = 1024;
+
+// True when candidates[index]'s box lies wholly inside the box of a larger
+// candidate of the same predicted class, or of one cut by the view's edge
+// (whatever it was classified as, seen only in part): a piece of that
+// marking (the R either side of a railway crossing's X), not one of its own.
+bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index);
 
 class MarkingDetector {
  public:

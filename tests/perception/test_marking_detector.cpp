@@ -136,6 +136,39 @@ TEST_CASE("detector: lane lines are set apart, not classified") {
   CHECK(detector.candidates().empty());
 }
 
+TEST_CASE("detector: a piece inside a larger marking is no detection of its own") {
+  const auto box = [](int col0, int row0, int col1, int row1, int label, bool clipped = false) {
+    Candidate c{};
+    c.col0 = col0;
+    c.row0 = row0;
+    c.col1 = col1;
+    c.row1 = row1;
+    c.predicted = label;
+    c.clipped = clipped;
+    return c;
+  };
+  const int rail = static_cast<int>(*marking_class_from_name("rail"));
+  const int xing = static_cast<int>(*marking_class_from_name("xing"));
+  const std::vector<Candidate> candidates = {
+      box(100, 10, 190, 90, rail),                 // 0: an X
+      box(110, 40, 125, 60, rail),                 // 1: an R inside it
+      box(170, 40, 195, 60, rail),                 // 2: reaching out of it
+      box(120, 20, 140, 30, xing),                 // 3: inside, another class
+      box(100, 10, 190, 90, rail),                 // 4: the same box again (not larger)
+      box(300, 200, 390, 300, kRejectClass, true), // 5: an X cut by the view's edge, rejected
+      box(310, 240, 325, 260, rail),               // 6: its R
+      box(300, 100, 390, 190, kRejectClass),       // 7: something rejected, whole
+      box(310, 140, 325, 160, rail),               // 8: a marking inside its box
+  };
+  CHECK_FALSE(is_piece_of_larger(candidates, 0));
+  CHECK(is_piece_of_larger(candidates, 1));
+  CHECK_FALSE(is_piece_of_larger(candidates, 2));
+  CHECK_FALSE(is_piece_of_larger(candidates, 3));
+  CHECK_FALSE(is_piece_of_larger(candidates, 4));
+  CHECK(is_piece_of_larger(candidates, 6));
+  CHECK_FALSE(is_piece_of_larger(candidates, 8));
+}
+
 TEST_CASE("detector: an empty road gives nothing; wrong frames are counted, not processed") {
   const CameraModel camera = default_camera_model();
   MarkingDetector detector(camera);

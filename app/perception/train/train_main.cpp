@@ -45,6 +45,8 @@ constexpr const char* kUsage =
     "                      [--sim-test DIR]... [--sim-drive DIR]...\n"
     "                      [--folds N] [--seed N] [--members N] [--epochs N] [--hidden N]\n"
     "                      [--out FILE.cpp]\n"
+    "       markloop-train --evaluate-builtin [--real DIR --real-camera FILE]\n"
+    "                      [--sim-test DIR]... [--sim-drive DIR]...\n"
     "\n"
     "Trains the road-marking classifier on the detector's candidates in annotated\n"
     "images and writes it as C++ source (app/perception/model/marking_model.cpp).\n"
@@ -68,10 +70,13 @@ constexpr const char* kUsage =
     "  --reject-weight W   factor on the reject class's loss weight (default 1)\n"
     "  --weight-decay W    L2 weight decay (default 1e-4)\n"
     "  --out FILE.cpp      write the model trained on all training data\n"
+    "  --evaluate-builtin  train nothing: judge the model compiled into this program on\n"
+    "                      the sets given (real images: a training fit, not a validation)\n"
     "\n"
     "Diagnostics, set in the environment:\n"
     "  MARKLOOP_TRAIN_SHOW_MISSES=1  per evaluation, how the missed markings were classified\n"
     "  MARKLOOP_TRAIN_LIST_MISSED=1  each missed marking: image, class, what its candidate got\n"
+    "                                (class, score; cut by the view's edge or a piece of a larger one)\n"
     "  MARKLOOP_TRAIN_LIST_FALSE=1   each wrong detection: image, label, centre in pixels\n"
     "  MARKLOOP_TRAIN_SHOW_FIT=1     also score the final model on the real images it was trained on\n";
 
@@ -89,6 +94,7 @@ struct Sample {
   bool augmented;               // a shifted, rotated or mirrored copy: training only
   bool clipped;                 // cut by the edge of the view: trained on, never reported
   std::array<float, 2> centre;  // quad centre in the image, pixels
+  std::array<int, 4> box;       // bird's-eye box: col0, row0, col1, row1
 };
 
 constexpr int kJitters = 6;
@@ -239,6 +245,7 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       s.label = kRejectClass;
       s.augmented = false;
       s.clipped = c.clipped;
+      s.box = {c.col0, c.row0, c.col1, c.row1};
       for (const auto& a : image.annotations) {
         if (!inside(a.quad, s.centre[0], s.centre[1])) continue;
         const auto label = marking_class_from_name(a.label);
@@ -465,8 +472,8 @@ struct Score {
 };
 
 void judge(const ImageSet& set, int image_index, const std::vector<const Sample*>& detections,
-           const std::vector<int>& predicted, float min_score, const std::vector<float>& scores,
-           Score& score) {
+           const std::vector<int>& predicted, const std::vector<bool>& piece, float min_score,
+           const std::vector<float>& scores, Score& score) {
   const auto& image = set.images[image_index];
   std::vector<bool> matched(image.annotations.size(), false);
   for (std::size_t a = 0; a < image.annotations.size(); ++a) {
@@ -476,7 +483,9 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
     if (image.in_range[a]) ++score.annotated_in_range[label];
   }
   for (std::size_t i = 0; i < detections.size(); ++i) {
-    if (predicted[i] == kRejectClass || scores[i] < min_score || detections[i]->clipped) continue;
+    if (predicted[i] == kRejectClass || scores[i] < min_score || detections[i]->clipped ||
+        piece[i])
+      continue;
     const std::string label(marking_class_name(static_cast<markloop::Label>(predicted[i])));
     // The real dataset does not annotate stop lines and crosswalks: such
     // detections on its images can be judged neither right nor wrong.
@@ -516,17 +525,22 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
   for (std::size_t a = 0; a < image.annotations.size(); ++a) {
     if (matched[a] || !marking_class_from_name(image.annotations[a].label)) continue;
     std::string seen = "no candidate";
+    char detail[64] = "";  // the candidate's score, and whether the view's edge cut it
     for (std::size_t i = 0; i < detections.size(); ++i)
       if (inside(image.annotations[a].quad, detections[i]->centre[0], detections[i]->centre[1])) {
         seen = predicted[i] == kRejectClass
                    ? std::string("reject")
                    : std::string(marking_class_name(static_cast<markloop::Label>(predicted[i])));
+        std::snprintf(detail, sizeof detail, " (score %.2f%s)", static_cast<double>(scores[i]),
+                      detections[i]->clipped ? ", cut by the view's edge"
+                      : piece[i]             ? ", a piece of a larger marking"
+                                             : "");
         if (predicted[i] != kRejectClass) break;
       }
     ++score.confusion[image.annotations[a].label + " -> " + seen];
     if (std::getenv("MARKLOOP_TRAIN_LIST_MISSED") != nullptr)
-      std::printf("  not found: %s %s -> %s%s\n", image.name.c_str(),
-                  image.annotations[a].label.c_str(), seen.c_str(),
+      std::printf("  not found: %s %s -> %s%s%s\n", image.name.c_str(),
+                  image.annotations[a].label.c_str(), seen.c_str(), detail,
                   image.in_range[a] ? " (in range)" : "");
   }
 }
@@ -595,15 +609,14 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
 
 // Classifies the candidates of the images in use once, then judges them at
 // each score threshold: scores[t] gets the judgement at min_scores[t].
-void evaluate(const ImageSet& set, const std::vector<Mlp>& members,
-              const std::vector<bool>& use_image, std::span<const float> min_scores,
-              std::span<Score> scores) {
-  const MlpModel model = view(members);
+void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool>& use_image,
+              std::span<const float> min_scores, std::span<Score> scores) {
   std::vector<std::vector<const Sample*>> per_image(set.images.size());
   for (const Sample& s : set.samples)
     if (!s.augmented) per_image[s.image].push_back(&s);
   std::vector<std::vector<int>> predicted(set.images.size());
   std::vector<std::vector<float>> confidence(set.images.size());
+  std::vector<std::vector<bool>> piece(set.images.size());
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     if (!use_image[i]) continue;
     for (const Sample* s : per_image[i]) {
@@ -612,17 +625,32 @@ void evaluate(const ImageSet& set, const std::vector<Mlp>& members,
       predicted[i].push_back(c);
       confidence[i].push_back(p[c]);
     }
+    // As the detector reports them: pieces of larger markings are not.
+    std::vector<Candidate> boxes(per_image[i].size());
+    for (std::size_t k = 0; k < boxes.size(); ++k) {
+      const Sample& s = *per_image[i][k];
+      boxes[k] = Candidate{};
+      boxes[k].col0 = s.box[0];
+      boxes[k].row0 = s.box[1];
+      boxes[k].col1 = s.box[2];
+      boxes[k].row1 = s.box[3];
+      boxes[k].clipped = s.clipped;
+      boxes[k].predicted = predicted[i][k];
+    }
+    piece[i].resize(boxes.size());
+    for (std::size_t k = 0; k < boxes.size(); ++k)
+      piece[i][k] = predicted[i][k] != kRejectClass && is_piece_of_larger(boxes, k);
   }
   for (std::size_t t = 0; t < min_scores.size(); ++t)
     for (std::size_t i = 0; i < set.images.size(); ++i)
       if (use_image[i])
-        judge(set, static_cast<int>(i), per_image[i], predicted[i], min_scores[t], confidence[i],
-              scores[t]);
+        judge(set, static_cast<int>(i), per_image[i], predicted[i], piece[i], min_scores[t],
+              confidence[i], scores[t]);
 }
 
-void evaluate(const ImageSet& set, const std::vector<Mlp>& members,
-              const std::vector<bool>& use_image, float min_score, Score& score) {
-  evaluate(set, members, use_image, std::span(&min_score, 1), std::span(&score, 1));
+void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool>& use_image,
+              float min_score, Score& score) {
+  evaluate(set, model, use_image, std::span(&min_score, 1), std::span(&score, 1));
 }
 
 // The dataset holds every other 60-frame block: number the clips present in
@@ -719,11 +747,16 @@ int main(int argc, char** argv) {
   int folds = 4;
   TrainOptions options;
   std::string command = "build/host/app/perception/train/markloop-train";
+  bool evaluate_builtin = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
       std::fputs(kUsage, stdout);
       return 0;
+    }
+    if (arg == "--evaluate-builtin") {
+      evaluate_builtin = true;
+      continue;
     }
     if (i + 1 >= argc) fail(arg + ": needs a value (see --help)");
     const char* value = argv[++i];
@@ -759,7 +792,9 @@ int main(int argc, char** argv) {
     else
       fail("unknown option " + arg + " (see --help)");
   }
-  if (real_dir.empty() && sim_dirs.empty() && sim_drive_train_dirs.empty())
+  if (evaluate_builtin && (!sim_dirs.empty() || !sim_drive_train_dirs.empty() || !out.empty()))
+    fail("--evaluate-builtin trains nothing: give only --real, --real-camera, --sim-test and --sim-drive");
+  if (!evaluate_builtin && real_dir.empty() && sim_dirs.empty() && sim_drive_train_dirs.empty())
     fail("no training data: give --real, --sim or --sim-drive-train");
   if (!real_dir.empty() && real_camera.empty()) fail("--real needs --real-camera");
   if (options.members < 1 || options.members > kMaxMembers)
@@ -783,6 +818,27 @@ int main(int argc, char** argv) {
     tests.push_back(extract(dir, dir + "/camera.yaml", false, true));
 
   const float min_score = DetectorConfig{}.min_score;
+  const auto judge_tests = [&](const MlpModel& model) {
+    for (const auto& test : tests) {
+      print_coverage(test);
+      Score score;
+      evaluate(test, model, std::vector<bool>(test.images.size(), true), min_score, score);
+      print_score(("Simulator test set " + test.dir + " (never trained on):").c_str(), score, false);
+    }
+  };
+  if (evaluate_builtin) {
+    const MlpModel& model = builtin_marking_model();
+    if (!real_dir.empty()) {
+      const ImageSet& real = sets.front();
+      print_coverage(real);
+      Score fit;
+      evaluate(real, model, std::vector<bool>(real.images.size(), true), min_score, fit);
+      print_score("Real images, the built-in model (trained on them: a fit, not a validation):",
+                  fit, true);
+    }
+    judge_tests(model);
+    return 0;
+  }
   const auto training = [&](int held_out_fold) {
     std::vector<const Sample*> data;
     for (const auto& set : sets)
@@ -806,7 +862,7 @@ int main(int argc, char** argv) {
       std::vector<bool> use(real.images.size(), false);
       for (std::size_t i = 0; i < real.images.size(); ++i)
         use[i] = fold_of(train::clip_of(real.images[i].name), folds) == fold;
-      evaluate(real, members, use, thresholds, by_threshold);
+      evaluate(real, view(members), use, thresholds, by_threshold);
       std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
     }
     char title[160];
@@ -822,15 +878,10 @@ int main(int argc, char** argv) {
   const std::vector<Mlp> members = train_members(data, options);
   if (std::getenv("MARKLOOP_TRAIN_SHOW_FIT") != nullptr && !real_dir.empty()) {
     Score fit;
-    evaluate(sets.front(), members, std::vector<bool>(sets.front().images.size(), true), min_score, fit);
+    evaluate(sets.front(), view(members), std::vector<bool>(sets.front().images.size(), true), min_score, fit);
     print_score("Real images, training fit (not a validation):", fit, true);
   }
-  for (const auto& test : tests) {
-    print_coverage(test);
-    Score score;
-    evaluate(test, members, std::vector<bool>(test.images.size(), true), min_score, score);
-    print_score(("Simulator test set " + test.dir + " (never trained on):").c_str(), score, false);
-  }
+  judge_tests(view(members));
   if (!out.empty()) {
     write_model(members, out, command, data.size());
     std::printf("\nwrote %s (%zu training candidates)\n", out.c_str(), data.size());
