@@ -794,6 +794,8 @@ int main(int argc, char** argv) {
   }
   if (evaluate_builtin && (!sim_dirs.empty() || !sim_drive_train_dirs.empty() || !out.empty()))
     fail("--evaluate-builtin trains nothing: give only --real, --real-camera, --sim-test and --sim-drive");
+  if (evaluate_builtin && real_dir.empty() && sim_test_dirs.empty() && sim_drive_dirs.empty())
+    fail("--evaluate-builtin: nothing to judge: give --real, --sim-test or --sim-drive");
   if (!evaluate_builtin && real_dir.empty() && sim_dirs.empty() && sim_drive_train_dirs.empty())
     fail("no training data: give --real, --sim or --sim-drive-train");
   if (!real_dir.empty() && real_camera.empty()) fail("--real needs --real-camera");

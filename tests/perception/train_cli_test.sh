@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# markloop-train from the outside: help, refusals with the reason, and the
+# compiled-in model judged on a small simulator set (no training).
+set -euo pipefail
+train=$1 sim=$2 work=$3
+rm -rf "$work" && mkdir -p "$work"
+source "$(dirname "$0")/../cli_check.sh"
+
+check "help" 0 "usage: markloop-train" -- "$train" --help
+check "no data" 2 "no training data" -- "$train" --folds 0
+check "bad members" 2 "--members must be 1..4" -- "$train" --sim "$work/none" --members 9
+check "evaluate nothing" 2 "nothing to judge" -- "$train" --evaluate-builtin
+check "evaluate trains nothing" 2 "trains nothing" -- "$train" --evaluate-builtin --sim "$work/none"
+check "missing set" 2 "$work/none" -- "$train" --evaluate-builtin --sim-test "$work/none"
+
+"$sim" training-set --out "$work/set" --seed 9002 --frames 6 >/dev/null 2>&1
+check "evaluate builtin" 0 "Simulator test set $work/set \(never trained on\)" -- \
+  "$train" --evaluate-builtin --sim-test "$work/set"
+# The table's last row: every class, with recall and precision.
+grep -qE "^all +[0-9]+ +[0-9]+ +[0-9.]+% +[0-9]+ +[0-9]+ +[0-9.]+%" "$work/out" ||
+  { echo "FAIL evaluate builtin: no 'all' row"; failures=$((failures + 1)); }
+finish
