@@ -173,7 +173,11 @@ int mirror_class(int label) {
 
 constexpr int kDriveStep = 5;  // every 5th frame of a drive: 2 per second at 10 fps
 
-ImageSet extract(const std::string& dir, const std::string& camera_path, bool real,
+// What a set is extracted for: training adds the augmented copies; a set
+// only evaluated needs just the detector's own candidates.
+enum class Use { kTrain, kEvaluate };
+
+ImageSet extract(const std::string& dir, const std::string& camera_path, bool real, Use use,
                  bool drive = false) {
   ImageSet set;
   set.dir = dir;
@@ -256,7 +260,7 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       // the edge of the view may be one of the others, so it teaches nothing.
       if (drive && s.label == kRejectClass && c.clipped) s.label = -2;
       set.samples.push_back(s);
-      if (s.label < 0) continue;
+      if (s.label < 0 || use == Use::kEvaluate) continue;
       if (s.label != kRejectClass) add_rotated(detector, c, s, set.samples, rng);
       // The simulator varies its markings itself; the few real clips need more help.
       if (!real) continue;
@@ -629,7 +633,6 @@ void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool
     std::vector<Candidate> boxes(per_image[i].size());
     for (std::size_t k = 0; k < boxes.size(); ++k) {
       const Sample& s = *per_image[i][k];
-      boxes[k] = Candidate{};
       boxes[k].col0 = s.box[0];
       boxes[k].row0 = s.box[1];
       boxes[k].col1 = s.box[2];
@@ -806,20 +809,30 @@ int main(int argc, char** argv) {
 
   std::vector<ImageSet> sets;
   if (!real_dir.empty()) {
-    sets.push_back(extract(real_dir, real_camera, true));
+    sets.push_back(
+        extract(real_dir, real_camera, true, evaluate_builtin ? Use::kEvaluate : Use::kTrain));
     for (const auto& image : sets.front().images) g_clips.push_back(train::clip_of(image.name));
     std::sort(g_clips.begin(), g_clips.end());
     g_clips.erase(std::unique(g_clips.begin(), g_clips.end()), g_clips.end());
   }
-  for (const auto& dir : sim_dirs) sets.push_back(extract(dir, dir + "/camera.yaml", false));
+  for (const auto& dir : sim_dirs)
+    sets.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain));
   for (const auto& dir : sim_drive_train_dirs)
-    sets.push_back(extract(dir, dir + "/camera.yaml", false, true));
+    sets.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain, true));
   std::vector<ImageSet> tests;
-  for (const auto& dir : sim_test_dirs) tests.push_back(extract(dir, dir + "/camera.yaml", false));
+  for (const auto& dir : sim_test_dirs)
+    tests.push_back(extract(dir, dir + "/camera.yaml", false, Use::kEvaluate));
   for (const auto& dir : sim_drive_dirs)
-    tests.push_back(extract(dir, dir + "/camera.yaml", false, true));
+    tests.push_back(extract(dir, dir + "/camera.yaml", false, Use::kEvaluate, true));
 
   const float min_score = DetectorConfig{}.min_score;
+  // The real images judged by a model trained on them: a fit, not a validation.
+  const auto judge_real_fit = [&](const MlpModel& model, const char* title) {
+    const ImageSet& real = sets.front();
+    Score fit;
+    evaluate(real, model, std::vector<bool>(real.images.size(), true), min_score, fit);
+    print_score(title, fit, true);
+  };
   const auto judge_tests = [&](const MlpModel& model) {
     for (const auto& test : tests) {
       print_coverage(test);
@@ -831,12 +844,8 @@ int main(int argc, char** argv) {
   if (evaluate_builtin) {
     const MlpModel& model = builtin_marking_model();
     if (!real_dir.empty()) {
-      const ImageSet& real = sets.front();
-      print_coverage(real);
-      Score fit;
-      evaluate(real, model, std::vector<bool>(real.images.size(), true), min_score, fit);
-      print_score("Real images, the built-in model (trained on them: a fit, not a validation):",
-                  fit, true);
+      print_coverage(sets.front());
+      judge_real_fit(model, "Real images, the built-in model (trained on them: a fit, not a validation):");
     }
     judge_tests(model);
     return 0;
@@ -878,11 +887,8 @@ int main(int argc, char** argv) {
 
   const auto data = training(-1);
   const std::vector<Mlp> members = train_members(data, options);
-  if (std::getenv("MARKLOOP_TRAIN_SHOW_FIT") != nullptr && !real_dir.empty()) {
-    Score fit;
-    evaluate(sets.front(), view(members), std::vector<bool>(sets.front().images.size(), true), min_score, fit);
-    print_score("Real images, training fit (not a validation):", fit, true);
-  }
+  if (std::getenv("MARKLOOP_TRAIN_SHOW_FIT") != nullptr && !real_dir.empty())
+    judge_real_fit(view(members), "Real images, training fit (not a validation):");
   judge_tests(view(members));
   if (!out.empty()) {
     write_model(members, out, command, data.size());
