@@ -28,6 +28,8 @@ constexpr const char* kUsage =
     "   \"ground\": [x, y]}\n"
     "quad: corners in the image's pixels (near left, near right, far right, far\n"
     "left); ground: centre on the road in metres, vehicle frame (x ahead, y left).\n"
+    "With detector_horizon_from_lanes: 1 in FILE, each image's lane lines place\n"
+    "the horizon (a camera pitched other than calibrated) before detection.\n"
     "\n"
     "  --camera FILE   calibration (required)\n"
     "  --min-score S   report detections scoring at least S (0..1; default the\n"
@@ -123,7 +125,9 @@ int main(int argc, char** argv) {
       continue;
     }
     const std::string name = json_string(path.substr(path.find_last_of('/') + 1));
-    for (const Detection& d : detector.detect(grey)) {
+    // Each image on its own: its own lane lines place the horizon (when the
+    // calibration asks for it, detector_horizon_from_lanes).
+    for (const Detection& d : detector.detect_still(grey)) {
       std::printf("{\"image\": %s, \"label\": \"%s\", \"score\": %.3f, \"quad\": [", name.c_str(),
                   std::string(marking_class_name(d.label)).c_str(), static_cast<double>(d.score));
       for (int k = 0; k < 4; ++k)

@@ -25,11 +25,16 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
   cols_ = std::max(1, static_cast<int>(std::lround((region.y_left_m - region.y_right_m) /
                                                    region.y_step_m)));
   const std::size_t n = static_cast<std::size_t>(rows_) * static_cast<std::size_t>(cols_);
+  calibrated_row_.assign(n, kNoSource);
   source_row_.assign(n, -1);
   source_col_.assign(n, 0);
   weight_x_.assign(n, 0);
   weight_y_.assign(n, 0);
   valid_ = cv::Mat::zeros(rows_, cols_, CV_8UC1);
+  hidden_from_.resize(static_cast<std::size_t>(std::max(0, source_cols_ - 1)));
+  for (std::size_t u = 0; u < hidden_from_.size(); ++u)
+    hidden_from_[u] = std::min(hidden_below.row_at(static_cast<float>(u)),
+                               hidden_below.row_at(static_cast<float>(u + 1)));
   for (int r = 0; r < rows_; ++r) {
     for (int c = 0; c < cols_; ++c) {
       Eigen::Vector2d pixel;
@@ -37,19 +42,36 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
                                   pixel))
         continue;
       // Bilinear reads (u, v) .. (u+1, v+1): all four must be road pixels.
-      if (!(pixel.x() >= 0.0 && pixel.y() >= 0.0 && pixel.x() < source_cols_ - 1 &&
-            pixel.y() < source_rows_ - 1))
+      // Rows beyond the image are kept (a row shift may bring them in).
+      if (!(pixel.x() >= 0.0 && pixel.x() < source_cols_ - 1 &&
+            std::abs(pixel.y()) < static_cast<double>(INT16_MAX)))
         continue;
-      const int u = static_cast<int>(pixel.x()), v = static_cast<int>(pixel.y());
-      const float hidden_from = std::min(hidden_below.row_at(static_cast<float>(u)),
-                                         hidden_below.row_at(static_cast<float>(u + 1)));
-      if (!(static_cast<float>(v + 1) < hidden_from)) continue;
+      const int u = static_cast<int>(pixel.x());
+      const int v = static_cast<int>(std::floor(pixel.y()));
       const std::size_t i = static_cast<std::size_t>(r) * cols_ + c;
-      source_row_[i] = static_cast<std::int16_t>(v);
+      calibrated_row_[i] = static_cast<std::int16_t>(v);
       source_col_[i] = static_cast<std::int16_t>(u);
       weight_x_[i] = static_cast<std::uint8_t>(std::min(255.0, std::floor((pixel.x() - u) * 256.0)));
       weight_y_[i] = static_cast<std::uint8_t>(std::min(255.0, std::floor((pixel.y() - v) * 256.0)));
-      valid_.at<std::uint8_t>(r, c) = 255;
+    }
+  }
+  set_row_shift(0, 0);
+}
+
+void BirdsEyeView::set_row_shift(int rows, int outline_rows) {
+  row_shift_ = rows;
+  const float outline_shift = static_cast<float>(outline_rows);
+  for (int r = 0; r < rows_; ++r) {
+    std::uint8_t* valid = valid_.ptr<std::uint8_t>(r);
+    const std::size_t base = static_cast<std::size_t>(r) * cols_;
+    for (int c = 0; c < cols_; ++c) {
+      const std::size_t i = base + c;
+      const int v = calibrated_row_[i] == kNoSource ? -1 : calibrated_row_[i] + rows;
+      const bool seen = v >= 0 && v < source_rows_ - 1 &&
+                        static_cast<float>(v + 1) <
+                            hidden_from_[static_cast<std::size_t>(source_col_[i])] + outline_shift;
+      source_row_[i] = static_cast<std::int16_t>(seen ? v : -1);
+      valid[c] = seen ? 255 : 0;
     }
   }
 }

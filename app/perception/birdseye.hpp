@@ -57,6 +57,14 @@ class BirdsEyeView {
   // `out`: CV_8UC1 rows() x cols(), preallocated.
   void warp(const cv::Mat& grey, cv::Mat& out) const;
 
+  // Reads the image `rows` lower (negative: higher) than the calibration
+  // says: the road's horizon is that many rows lower in the image, as when
+  // the camera is pitched up by about rows / focal length. The bonnet
+  // outline moves by `outline_rows` (the same when the camera's mount
+  // moved, none when the car pitched). Recomputes valid(); no allocation.
+  void set_row_shift(int rows, int outline_rows);
+  int row_shift() const { return row_shift_; }
+
   // Ground point (vehicle frame, metres) of an output pixel position
   // (fractional: pixel centres are at integers).
   float ground_x(float row) const { return region_.x_far_m - (row + 0.5f) * region_.x_step_m; }
@@ -66,9 +74,15 @@ class BirdsEyeView {
   BirdsEyeRegion region_;
   int rows_ = 0, cols_ = 0;
   int source_cols_ = 0, source_rows_ = 0;
-  // Per output pixel: the top-left source pixel (row -1: invalid) and
-  // bilinear weights in 1/256 (fx, fy).
+  // Per output pixel: the top-left source pixel the calibration gives
+  // (kNoSource: none, or not in the image's columns), and the one read at
+  // the current row shift (row -1: invalid); bilinear weights in 1/256 (fx, fy).
+  static constexpr std::int16_t kNoSource = INT16_MIN;
+  std::vector<std::int16_t> calibrated_row_;
   std::vector<std::int16_t> source_row_, source_col_;
+  // Per image column: the first row of the bonnet under u or u + 1.
+  std::vector<float> hidden_from_;
+  int row_shift_ = 0;
   std::vector<std::uint8_t> weight_x_, weight_y_;
   cv::Mat valid_;
 };

@@ -11,6 +11,14 @@
 namespace markloop::perception {
 namespace {
 
+// detect_still() warps an image again with the horizon where the last look
+// put it, up to this many looks in all: the farther the view is from the
+// true horizon, the more it bends the lines that measure it.
+constexpr int kStillLooks = 3;
+// Lines (and dashes) shorter than this on the road say too little about
+// their direction to place the horizon.
+constexpr double kMinHorizonLineM = 1.5;
+
 int find_root(std::int32_t* parent, int i) {
   while (parent[i] != i) {
     parent[i] = parent[parent[i]];  // path halving
@@ -80,10 +88,34 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   mask_.setTo(0);
   integral_.create(rows + 1, cols + 1, CV_32SC1);
   integral_.setTo(0);
-  // Valid-pixel counts never change: integrate them once.
   valid_integral_.create(rows + 1, cols + 1, CV_32SC1);
   valid_integral_.setTo(0);
+  at_edge_.create(rows, cols, CV_8UC1);
+  update_view_masks();
+  // The road's horizon straight ahead: where a point 100 km ahead appears.
+  Eigen::Vector2d far_ahead;
+  horizon_known_ = camera_.ground_to_image({1.0e5, 0.0}, far_ahead) &&
+                   std::isfinite(far_ahead.y());
+  calibrated_horizon_row_ = horizon_known_ ? static_cast<float>(far_ahead.y()) : 0.0f;
+  const std::size_t pixels = static_cast<std::size_t>(rows) * cols;
+  pixel_labels_.assign(pixels, -1);
+  run_above_.assign(pixels, 0);
+  run_below_.assign(pixels, 0);
+  // 8-connected labelling gives at most one provisional label per two pixels
+  // of a row, plus one.
+  const std::size_t max_labels = static_cast<std::size_t>(rows) * ((cols + 1) / 2 + 1);
+  parent_.assign(max_labels, 0);
+  label_box_.assign(max_labels, Part{});
+  label_moments_.assign(max_labels, Moments{});
+  parts_.assign(kMaxParts, Part{});
+  group_parent_.assign(kMaxParts, 0);
+  group_candidate_.assign(kMaxParts, -1);
+}
+
+void MarkingDetector::update_view_masks() {
+  const int rows = birdseye_.rows(), cols = birdseye_.cols();
   const cv::Mat& valid = birdseye_.valid();
+  // Valid-pixel counts change only with the view's row shift: integrated then.
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* v = valid.ptr<std::uint8_t>(r);
     const std::int32_t* above = valid_integral_.ptr<std::int32_t>(r);
@@ -96,7 +128,6 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   }
   // Pixels on the view's border or next to (or on) one the camera does not
   // see: paint there may go on beyond what is seen.
-  at_edge_.create(rows, cols, CV_8UC1);
   for (int r = 0; r < rows; ++r) {
     std::uint8_t* out = at_edge_.ptr<std::uint8_t>(r);
     for (int c = 0; c < cols; ++c) {
@@ -107,29 +138,135 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
       out[c] = edge ? 1 : 0;
     }
   }
-  const std::size_t pixels = static_cast<std::size_t>(rows) * cols;
-  pixel_labels_.assign(pixels, -1);
-  run_above_.assign(pixels, 0);
-  run_below_.assign(pixels, 0);
-  // 8-connected labelling gives at most one provisional label per two pixels
-  // of a row, plus one.
-  const std::size_t max_labels = static_cast<std::size_t>(rows) * ((cols + 1) / 2 + 1);
-  parent_.assign(max_labels, 0);
-  label_box_.assign(max_labels, Part{});
-  parts_.assign(kMaxParts, Part{});
-  group_parent_.assign(kMaxParts, 0);
-  group_candidate_.assign(kMaxParts, -1);
+}
+
+bool MarkingDetector::usable(const cv::Mat& grey) const {
+  return grey.type() == CV_8UC1 && grey.cols == camera_.width() && grey.rows == camera_.height() &&
+         model_is_usable(*model_);
 }
 
 std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
   ++counters_.frames;
+  if (!usable(grey)) return reject_frame();
+  process(grey);
+  if (config_.horizon_from_lanes && horizon_known_) {
+    if (const std::optional<float> measured = measure_horizon_shift()) {
+      ++counters_.horizon_measured;
+      horizon_estimate_ += config_.horizon_gain * (*measured - horizon_estimate_);
+      // Moved by most of a row only: an estimate between two rows must not
+      // switch the view back and forth every frame.
+      if (std::abs(horizon_estimate_ - static_cast<float>(birdseye_.row_shift())) >= 0.75f)
+        set_horizon_shift(static_cast<int>(std::lround(horizon_estimate_)));
+    } else {
+      ++counters_.horizon_unmeasured;
+    }
+  }
+  return {detections_.data(), detection_count_};
+}
+
+std::span<const Detection> MarkingDetector::detect_still(const cv::Mat& grey) {
+  if (!config_.horizon_from_lanes || !horizon_known_) return detect(grey);
+  ++counters_.frames;
+  if (!usable(grey)) return reject_frame();
+  horizon_estimate_ = 0.0f;
+  set_horizon_shift(0);
+  const DetectorCounters before = counters_;
+  process(grey);
+  std::optional<float> measured = measure_horizon_shift();
+  const bool placed = measured.has_value();
+  for (int look = 1; look < kStillLooks && measured; ++look) {
+    const int rows = static_cast<int>(std::lround(*measured));
+    if (rows == birdseye_.row_shift()) break;
+    horizon_estimate_ = *measured;
+    counters_ = before;
+    set_horizon_shift(rows);
+    process(grey);
+    measured = measure_horizon_shift();
+  }
+  ++(placed ? counters_.horizon_measured : counters_.horizon_unmeasured);
+  return {detections_.data(), detection_count_};
+}
+
+std::span<const Detection> MarkingDetector::reject_frame() {
+  ++counters_.bad_frames;
   detection_count_ = 0;
   candidate_count_ = 0;
-  if (grey.type() != CV_8UC1 || grey.cols != camera_.width() || grey.rows != camera_.height() ||
-      !model_is_usable(*model_)) {
-    ++counters_.bad_frames;
-    return {};
+  lane_segment_count_ = 0;
+  return {};
+}
+
+std::optional<float> MarkingDetector::measure_horizon_shift() const {
+  const float reach = static_cast<float>(config_.horizon_max_shift_px);
+  const float width = static_cast<float>(camera_.width());
+  const VanishingSearch search{calibrated_horizon_row_ - reach, calibrated_horizon_row_ + reach,
+                               -0.5f * width, 1.5f * width};
+  const std::optional<float> row = vanishing_row(lane_segments(), search);
+  if (!row) return std::nullopt;
+  return *row - calibrated_horizon_row_;
+}
+
+void MarkingDetector::set_horizon_shift(int rows) {
+  rows = std::clamp(rows, -config_.horizon_max_shift_px, config_.horizon_max_shift_px);
+  if (rows == birdseye_.row_shift()) return;
+  birdseye_.set_row_shift(rows, config_.hidden_below_follows_horizon ? rows : 0);
+  update_view_masks();
+  ++counters_.horizon_moves;
+}
+
+void MarkingDetector::note_lane_segment(const Part& box, const Moments& sums) {
+  const auto& region = config_.region;
+  const double n = box.area;
+  const double mean_row = static_cast<double>(sums.row) / n;
+  const double mean_col = static_cast<double>(sums.col) / n;
+  // Second moments in metres, along the road (rows) and across it (columns).
+  const double xs = region.x_step_m, ys = region.y_step_m;
+  const double along = (static_cast<double>(sums.row_row) / n - mean_row * mean_row) * xs * xs;
+  const double across = (static_cast<double>(sums.col_col) / n - mean_col * mean_col) * ys * ys;
+  const double both = (static_cast<double>(sums.row_col) / n - mean_row * mean_col) * xs * ys;
+  const double half_gap = std::sqrt(0.25 * (along - across) * (along - across) + both * both);
+  const double major = 0.5 * (along + across) + half_gap;
+  const double minor = std::max(0.0, 0.5 * (along + across) - half_gap);
+  // A uniform bar of length L has a variance of L^2 / 12 along it.
+  const double length = std::sqrt(12.0 * major), width = std::sqrt(12.0 * minor);
+  // Long and thin: at least seven times as long as wide (blur and a pitch
+  // other than calibrated widen lines in the view, so no fixed width);
+  // dashes count.
+  constexpr double kMinElongation = 7.0;
+  if (length < kMinHorizonLineM || length < kMinElongation * width) return;
+  // Its axis, from the road's direction: lines across the road (stop lines)
+  // do not run to the horizon.
+  constexpr double kMaxAngleRad = 0.3;
+  const double angle = 0.5 * std::atan2(2.0 * both, along - across);
+  if (std::abs(angle) > kMaxAngleRad) return;
+  const double half_rows = 0.5 * length * std::cos(angle) / xs;
+  const double half_cols = 0.5 * length * std::sin(angle) / ys;
+  std::array<Eigen::Vector2d, 2> ends;
+  for (int k = 0; k < 2; ++k) {
+    const double sign = k == 0 ? -1.0 : 1.0;
+    const float row = static_cast<float>(mean_row + sign * half_rows);
+    const float col = static_cast<float>(mean_col + sign * half_cols);
+    if (!camera_.ground_to_image({birdseye_.ground_x(row), birdseye_.ground_y(col)}, ends[k]))
+      return;
   }
+  const float shift = static_cast<float>(birdseye_.row_shift());
+  const ImageSegment segment{static_cast<float>(ends[0].x()), static_cast<float>(ends[0].y()) + shift,
+                             static_cast<float>(ends[1].x()), static_cast<float>(ends[1].y()) + shift};
+  // Keep the longest: they say the most about where the lines meet.
+  std::size_t slot = lane_segment_count_;
+  if (slot == lane_segments_.size()) {
+    slot = static_cast<std::size_t>(std::min_element(lane_lengths_.begin(), lane_lengths_.end()) -
+                                    lane_lengths_.begin());
+    if (!(static_cast<float>(length) > lane_lengths_[slot])) return;
+  } else {
+    ++lane_segment_count_;
+  }
+  lane_segments_[slot] = segment;
+  lane_lengths_[slot] = static_cast<float>(length);
+}
+
+void MarkingDetector::process(const cv::Mat& grey) {
+  detection_count_ = 0;
+  candidate_count_ = 0;
   birdseye_.warp(grey, bev_);
   threshold();
   cut_line_junctions();
@@ -166,7 +303,6 @@ std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
     locate(candidate, d);
     ++counters_.detections;
   }
-  return {detections_.data(), detection_count_};
 }
 
 void MarkingDetector::threshold() {
@@ -293,6 +429,8 @@ std::size_t MarkingDetector::label_parts() {
   std::int32_t* parent = parent_.data();
   int next = 0;
   const int max_labels = static_cast<int>(parent_.size());
+  const bool lane_axes = config_.horizon_from_lanes;
+  lane_segment_count_ = 0;
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
     std::int32_t* row = labels + static_cast<std::size_t>(r) * cols;
@@ -325,6 +463,7 @@ std::size_t MarkingDetector::label_parts() {
         label = next++;
         parent[label] = label;
         label_box_[label] = Part{c, r, c, r, 0, 0};
+        label_moments_[label] = Moments{};
       }
       row[c] = label;
       Part& box = label_box_[label];
@@ -332,6 +471,14 @@ std::size_t MarkingDetector::label_parts() {
       box.col1 = std::max(box.col1, c);
       box.row1 = r;  // rows only grow
       ++box.area;
+      if (lane_axes) {
+        Moments& sums = label_moments_[label];
+        sums.row += r;
+        sums.col += c;
+        sums.row_row += static_cast<std::int64_t>(r) * r;
+        sums.col_col += static_cast<std::int64_t>(c) * c;
+        sums.row_col += static_cast<std::int64_t>(r) * c;
+      }
     }
   }
   // Merge each provisional label's box into its root's.
@@ -345,6 +492,15 @@ std::size_t MarkingDetector::label_parts() {
     into.row0 = std::min(into.row0, from.row0);
     into.row1 = std::max(into.row1, from.row1);
     into.area += from.area;
+    if (lane_axes) {
+      Moments& sums = label_moments_[root];
+      const Moments& more = label_moments_[label];
+      sums.row += more.row;
+      sums.col += more.col;
+      sums.row_row += more.row_row;
+      sums.col_col += more.col_col;
+      sums.row_col += more.row_col;
+    }
   }
   const auto& region = config_.region;
   std::size_t count = 0;
@@ -352,6 +508,7 @@ std::size_t MarkingDetector::label_parts() {
     if (parent[label] != label) continue;
     const Part& box = label_box_[label];
     if (box.area < min_part_area_px_) continue;
+    if (lane_axes) note_lane_segment(box, label_moments_[label]);
     const float length = static_cast<float>(box.row1 - box.row0 + 1) * region.x_step_m;
     const float width = static_cast<float>(box.col1 - box.col0 + 1) * region.y_step_m;
     const float fill = static_cast<float>(box.area) /
@@ -492,7 +649,8 @@ void MarkingDetector::locate(const Candidate& candidate, Detection& out) const {
   for (std::size_t i = 0; i < 4; ++i) {
     Eigen::Vector2d pixel(-1.0, -1.0);
     camera_.ground_to_image({corners[i][0], corners[i][1]}, pixel);
-    out.quad[i] = {static_cast<float>(pixel.x()), static_cast<float>(pixel.y())};
+    out.quad[i] = {static_cast<float>(pixel.x()),
+                   static_cast<float>(pixel.y()) + static_cast<float>(birdseye_.row_shift())};
   }
   out.ground_x = 0.5f * (near + far);
   out.ground_y = 0.5f * (left + right);
@@ -520,6 +678,7 @@ bool load_detector_config(const std::string& path, DetectorConfig& config, std::
         {"detector_y_step_m", &c.region.y_step_m, 0.005f, 1.0f},
         {"detector_local_window_m", &c.local_window_m, 0.1f, 20.0f},
         {"detector_min_score", &c.min_score, 0.0f, 1.0f},
+        {"detector_horizon_gain", &c.horizon_gain, 0.001f, 1.0f},
     };
     for (const Key& key : keys) {
       const cv::FileNode node = fs[key.name];
@@ -535,6 +694,27 @@ bool load_detector_config(const std::string& path, DetectorConfig& config, std::
         return false;
       }
       *key.value = static_cast<float>(v);
+    }
+    const auto read_switch = [&](const char* name, bool& value) {
+      const cv::FileNode node = fs[name];
+      if (node.empty()) return true;
+      if (!node.isInt() || (static_cast<int>(node) != 0 && static_cast<int>(node) != 1)) {
+        error = path + ": " + name + " must be 0 or 1";
+        return false;
+      }
+      value = static_cast<int>(node) == 1;
+      return true;
+    };
+    if (!read_switch("detector_horizon_from_lanes", c.horizon_from_lanes) ||
+        !read_switch("detector_hidden_below_follows_horizon", c.hidden_below_follows_horizon))
+      return false;
+    const cv::FileNode max_shift = fs["detector_horizon_max_shift_px"];
+    if (!max_shift.empty()) {
+      if (!max_shift.isInt() || static_cast<int>(max_shift) < 0 || static_cast<int>(max_shift) > 200) {
+        error = path + ": detector_horizon_max_shift_px must be a whole number 0..200";
+        return false;
+      }
+      c.horizon_max_shift_px = static_cast<int>(max_shift);
     }
     const cv::FileNode rows = fs["detector_ignore_image_rows_from"];
     if (!rows.empty()) {

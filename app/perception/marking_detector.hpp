@@ -17,6 +17,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -26,6 +27,7 @@
 #include "engine/types.hpp"
 #include "perception/birdseye.hpp"
 #include "perception/camera_model.hpp"
+#include "perception/horizon.hpp"
 #include "perception/marking_features.hpp"
 
 namespace markloop::perception {
@@ -88,6 +90,20 @@ struct DetectorConfig {
   // Markings cut by the edge of the view are classified (for training) but
   // not reported: their class and centre are guesses.
   bool report_clipped = false;
+  // The horizon from the lane lines (horizon.hpp): a camera pitched other
+  // than its calibration says sees the road stretched or squashed along the
+  // bird's-eye view. When on, each frame's lane lines measure where the
+  // horizon is, and the view is read that many image rows lower or higher
+  // (at most horizon_max_shift_px) from the next frame on; each frame's
+  // measurement moves the estimate by horizon_gain of the difference.
+  // detect_still() measures and applies it on the image itself.
+  bool horizon_from_lanes = false;
+  float horizon_gain = 0.2f;
+  int horizon_max_shift_px = 40;
+  // The bonnet outline moves with the horizon: on for a camera whose mount
+  // is what changes (the real dataset's two recording set-ups), off when
+  // the car's own pitch is (the bonnet stays put in the image).
+  bool hidden_below_follows_horizon = false;
   // Classifier weights; nullptr: the model compiled in (model/marking_model.cpp).
   const MlpModel* model = nullptr;
 };
@@ -112,6 +128,9 @@ struct DetectorCounters {
   std::uint64_t pieces = 0;              // inside a larger marking (is_piece_of_larger)
   std::uint64_t detections = 0;
   std::uint64_t detections_dropped = 0;  // over kMaxDetections in one frame
+  std::uint64_t horizon_measured = 0;    // frames whose lane lines crossed near the horizon
+  std::uint64_t horizon_unmeasured = 0;  // ... and frames where they did not
+  std::uint64_t horizon_moves = 0;       // row shift of the view changed
 };
 
 // One group of bright parts, as classified (exposed for training and tests).
@@ -144,6 +163,15 @@ class MarkingDetector {
   // bad_frames and give no detections). The result stays valid until the
   // next call.
   std::span<const Detection> detect(const cv::Mat& grey);
+  // For an image unrelated to the frames before it: with horizon_from_lanes,
+  // its own lane lines place the horizon (the view is warped twice when they
+  // move it); otherwise as detect().
+  std::span<const Detection> detect_still(const cv::Mat& grey);
+
+  // Image rows the view is read below the calibration's (horizon_from_lanes).
+  int horizon_shift() const { return birdseye_.row_shift(); }
+  // The last frame's lane lines in the image, as the horizon measurement saw them.
+  std::span<const ImageSegment> lane_segments() const { return {lane_segments_.data(), lane_segment_count_}; }
 
   const DetectorCounters& counters() const { return counters_; }
   const DetectorConfig& config() const { return config_; }
@@ -162,6 +190,10 @@ class MarkingDetector {
     int area;
     int group;
   };
+  // Sums over a provisional label's pixels, for its axis (lane lines).
+  struct Moments {
+    std::int64_t row, col, row_row, col_col, row_col;
+  };
 
   void threshold();
   void cut_line_junctions();
@@ -169,6 +201,13 @@ class MarkingDetector {
   void group_parts(std::size_t part_count);
   void classify(Candidate& candidate);
   bool touches_edge(const Candidate& candidate) const;
+  bool usable(const cv::Mat& grey) const;
+  std::span<const Detection> reject_frame();
+  void process(const cv::Mat& grey);
+  void note_lane_segment(const Part& box, const Moments& sums);
+  std::optional<float> measure_horizon_shift() const;
+  void set_horizon_shift(int rows);
+  void update_view_masks();
 
   CameraModel camera_;
   DetectorConfig config_;
@@ -180,13 +219,14 @@ class MarkingDetector {
   cv::Mat bev_;       // CV_8UC1 bird's-eye image
   cv::Mat mask_;      // CV_8UC1 paint mask
   cv::Mat integral_;        // CV_32SC1 (rows+1) x (cols+1): bird's-eye sums
-  cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (fixed)
-  cv::Mat at_edge_;         // CV_8UC1: 1 where a pixel borders what the camera does not see (fixed)
+  cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (for the view's row shift)
+  cv::Mat at_edge_;         // CV_8UC1: 1 where a pixel borders what the camera does not see
   std::vector<std::int16_t> run_above_;     // paint run length down to each pixel
   std::vector<std::int16_t> run_below_;     // ... and from it downwards
   std::vector<std::int32_t> pixel_labels_;  // provisional label per pixel, -1 none
   std::vector<std::int32_t> parent_;        // union-find over provisional labels
   std::vector<Part> label_box_;             // box and area per provisional label
+  std::vector<Moments> label_moments_;      // pixel sums per provisional label
   std::vector<Part> parts_;                 // kMaxParts
   std::vector<std::int32_t> group_parent_;     // union-find over parts
   std::vector<std::int32_t> group_candidate_;  // group root -> candidate index
@@ -195,6 +235,13 @@ class MarkingDetector {
   std::array<Detection, kMaxDetections> detections_{};
   std::size_t detection_count_ = 0;
   PatchScratch scratch_;
+  // Lane lines of the last frame, the longest kMaxHorizonSegments.
+  std::array<ImageSegment, kMaxHorizonSegments> lane_segments_{};
+  std::array<float, kMaxHorizonSegments> lane_lengths_{};
+  std::size_t lane_segment_count_ = 0;
+  float calibrated_horizon_row_ = 0.0f;  // the image row of the road's horizon, straight ahead
+  bool horizon_known_ = false;           // the calibration places the horizon
+  float horizon_estimate_ = 0.0f;        // rows below the calibration's, smoothed
   DetectorCounters counters_;
 };
 

@@ -22,12 +22,15 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: markloop-detector-bench [--camera FILE] [--y4m FILE] [--frames N] [--skip N]\n"
+    "                               [--horizon-from-lanes]\n"
     "\n"
     "Times MarkingDetector::detect() per frame and prints median, p90, p99 and\n"
     "maximum. --y4m: frames from a file (mono or any YUV, luma used), else\n"
     "synthetic frames of the camera's size. --camera: calibration (default: the\n"
     "simulator's camera, 1280x512). --frames: frames timed (default 1000).\n"
-    "--skip: frames of the file skipped first (default 0).\n";
+    "--skip: frames of the file skipped first (default 0).\n"
+    "--horizon-from-lanes: the lane lines place the horizon on every frame\n"
+    "(as detector_horizon_from_lanes: 1 in a calibration file).\n";
 
 double thread_cpu_ms() {
   timespec ts{};
@@ -48,11 +51,16 @@ int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-detector-bench";
   std::string camera_path, y4m_path;
   unsigned frames = 1000, skip = 0;
+  bool horizon_from_lanes = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
       std::fputs(kUsage, stdout);
       return 0;
+    }
+    if (arg == "--horizon-from-lanes") {
+      horizon_from_lanes = true;
+      continue;
     }
     if (i + 1 >= argc) markloop::cli::fail(arg + ": needs a value (see --help)");
     const char* value = argv[++i];
@@ -77,6 +85,7 @@ int main(int argc, char** argv) {
     camera = *loaded;
     if (!load_detector_config(camera_path, config, error)) markloop::cli::fail(error);
   }
+  config.horizon_from_lanes = config.horizon_from_lanes || horizon_from_lanes;
   MarkingDetector detector(camera, config);
 
   markloop::io::Y4mReader reader;
@@ -132,5 +141,13 @@ int main(int argc, char** argv) {
               per_frame_detections);
   std::printf("| thread CPU | %.3f ms | %.3f ms | %.3f ms | %.3f ms | | |\n", percentile(cpu_ms, 0.5),
               percentile(cpu_ms, 0.9), percentile(cpu_ms, 0.99), percentile(cpu_ms, 1.0));
+  if (config.horizon_from_lanes) {
+    const DetectorCounters& c = detector.counters();
+    std::printf("horizon from the lane lines: measured in %llu frames, not in %llu; view moved %llu "
+                "times; now %d rows\n",
+                static_cast<unsigned long long>(c.horizon_measured),
+                static_cast<unsigned long long>(c.horizon_unmeasured),
+                static_cast<unsigned long long>(c.horizon_moves), detector.horizon_shift());
+  }
   return 0;
 }

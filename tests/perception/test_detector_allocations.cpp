@@ -1,6 +1,7 @@
 // Proves detect() does not touch the heap: operator new is replaced, and so
 // are the C allocation functions (OpenCV allocates matrices with malloc and
 // posix_memalign), all counted while frames are processed.
+#include <cmath>
 #include <cstdlib>
 
 #include <catch2/catch_test_macros.hpp>
@@ -60,4 +61,35 @@ TEST_CASE("detect() allocates nothing, frame after frame", "[perception][memory]
   CHECK(candidates > 0);
   CHECK(detector.counters().frames == 121);
   (void)detections;
+}
+
+TEST_CASE("the horizon from the lane lines allocates nothing, when it moves the view either",
+          "[perception][memory]") {
+  const CameraModel calibrated = default_camera_model();
+  // Frames from the camera pitched 1 degree up and down: each still image
+  // moves the view's row shift, which recomputes its masks.
+  std::vector<cv::Mat> frames;
+  for (const double pitch_deg : {-1.0, 1.0}) {
+    CameraMounting mounting = calibrated.mounting();
+    mounting.pitch_rad += pitch_deg * M_PI / 180.0;
+    const CameraModel actual = CameraModel::pinhole(calibrated.width(), calibrated.height(),
+                                                    calibrated.intrinsics(), mounting);
+    frames.push_back(render_road(actual, {{3.0, 40.0, 1.7, 1.85},
+                                          {3.0, 40.0, -1.85, -1.7},
+                                          {3.0, 40.0, 5.3, 5.45},
+                                          {8.8, 11.2, 0.6, 1.2}}));
+  }
+  DetectorConfig config;
+  config.horizon_from_lanes = true;
+  MarkingDetector detector(calibrated, config);
+  detector.detect_still(frames[0]);
+  AllocationCounter heap;
+  for (int round = 0; round < 5; ++round)
+    for (const cv::Mat& frame : frames) {
+      detector.detect_still(frame);
+      detector.detect(frame);
+    }
+  const std::size_t allocations = heap.stop();
+  CHECK(allocations == 0);
+  CHECK(detector.counters().horizon_moves >= 10);
 }

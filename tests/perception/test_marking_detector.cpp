@@ -184,6 +184,93 @@ TEST_CASE("detector: an empty road gives nothing; wrong frames are counted, not 
   CHECK(detector.counters().frames == 3);
 }
 
+TEST_CASE("horizon: lane lines meeting at a point give its row; strays and parallels do not") {
+  // Four lines from the bottom of an 800x600 image to a point at (420, 250),
+  // each seen over part of its length.
+  const float vx = 420.0f, vy = 250.0f;
+  std::vector<ImageSegment> lines;
+  for (const float foot : {0.0f, 250.0f, 600.0f, 800.0f}) {
+    const auto at = [&](float t) { return std::array<float, 2>{foot + t * (vx - foot), 600.0f + t * (vy - 600.0f)}; };
+    const auto a = at(0.2f), b = at(0.6f);
+    lines.push_back({a[0], a[1], b[0], b[1]});
+  }
+  const VanishingSearch search{200.0f, 300.0f, -400.0f, 1200.0f};
+  const std::optional<float> row = vanishing_row(lines, search);
+  REQUIRE(row.has_value());
+  CHECK(*row == Catch::Approx(vy).margin(0.01));
+  // A kerb bent by a parked car and a shadow across: outvoted.
+  lines.push_back({100.0f, 500.0f, 300.0f, 380.0f});
+  lines.push_back({500.0f, 420.0f, 700.0f, 300.0f});
+  const std::optional<float> with_strays = vanishing_row(lines, search);
+  REQUIRE(with_strays.has_value());
+  CHECK(*with_strays == Catch::Approx(vy).margin(0.01));
+  // Parallel lines meet nowhere; lines meeting outside the rows searched
+  // are not the horizon.
+  const std::vector<ImageSegment> parallel = {{100, 500, 200, 400}, {300, 500, 400, 400}};
+  CHECK_FALSE(vanishing_row(parallel, search).has_value());
+  const VanishingSearch elsewhere{300.0f, 400.0f, -400.0f, 1200.0f};
+  CHECK_FALSE(vanishing_row(std::span(lines).first(4), elsewhere).has_value());
+}
+
+TEST_CASE("detector: the horizon from the lane lines undoes a camera pitched other than calibrated") {
+  const CameraModel calibrated = default_camera_model();
+  CameraMounting mounting = calibrated.mounting();
+  mounting.pitch_rad += 1.0 * M_PI / 180.0;  // looks 1 degree further down than calibrated
+  const CameraModel actual =
+      CameraModel::pinhole(calibrated.width(), calibrated.height(), calibrated.intrinsics(), mounting);
+  // Four lane lines, dashes between, and a legend-sized block at 10 m.
+  std::vector<GroundRect> paint = {{3.0, 40.0, 1.7, 1.85},   {3.0, 40.0, -1.85, -1.7},
+                                   {3.0, 40.0, 5.3, 5.45},   {3.0, 40.0, -5.45, -5.3},
+                                   {8.8, 11.2, 0.6, 1.2}};
+  for (double x = 4.0; x < 40.0; x += 9.0) paint.push_back({x, x + 3.0, -0.08, 0.08});
+  const cv::Mat frame = render_road(actual, paint);
+  // Pitched down, the camera sees the horizon higher (about 16 rows): the
+  // view must be read that much higher.
+  Eigen::Vector2d horizon_calibrated, horizon_actual;
+  REQUIRE(calibrated.ground_to_image({1.0e5, 0.0}, horizon_calibrated));
+  REQUIRE(actual.ground_to_image({1.0e5, 0.0}, horizon_actual));
+  const double expected_shift = horizon_actual.y() - horizon_calibrated.y();
+  CHECK(expected_shift < -10.0);
+  Detection where{};
+
+  DetectorConfig fixed;
+  MarkingDetector uncorrected(calibrated, fixed);
+  uncorrected.detect_still(frame);
+  CHECK(uncorrected.horizon_shift() == 0);
+  REQUIRE(nearest(uncorrected, 10.0, 0.9, where) != nullptr);
+  CHECK(where.ground_x > 10.8);  // placed too far without the correction
+
+  DetectorConfig config;
+  config.horizon_from_lanes = true;
+  MarkingDetector still(calibrated, config);
+  still.detect_still(frame);
+  CHECK(still.horizon_shift() == Catch::Approx(expected_shift).margin(2.0));
+  CHECK(still.counters().horizon_measured == 1);
+  CHECK(still.counters().frames == 1);
+  REQUIRE(nearest(still, 10.0, 0.9, where) != nullptr);
+  CHECK(where.ground_x == Catch::Approx(10.0).margin(0.2));
+  CHECK(where.ground_y == Catch::Approx(0.9).margin(0.08));
+  // The quad is where the block is in the image the camera took.
+  Eigen::Vector2d near_left;
+  REQUIRE(actual.ground_to_image({8.8, 1.2}, near_left));
+  CHECK(where.quad[0][1] == Catch::Approx(near_left.y()).margin(4.0));
+
+  // On a stream, each frame moves the estimate part of the way.
+  MarkingDetector stream(calibrated, config);
+  stream.detect(frame);
+  const int after_one = stream.horizon_shift();
+  CHECK(std::abs(after_one) < std::abs(still.horizon_shift()));
+  for (int k = 0; k < 40; ++k) stream.detect(frame);
+  CHECK(std::abs(stream.horizon_shift() - still.horizon_shift()) <= 1);
+  CHECK(stream.counters().horizon_measured == 41);
+
+  // An empty road has no lines: nothing moves.
+  MarkingDetector empty(calibrated, config);
+  empty.detect_still(render_road(calibrated, {}));
+  CHECK(empty.horizon_shift() == 0);
+  CHECK(empty.counters().horizon_unmeasured == 1);
+}
+
 TEST_CASE("classifier: the compiled-in model fits the features and gives probabilities") {
   const MlpModel& model = builtin_marking_model();
   REQUIRE(model_is_usable(model));

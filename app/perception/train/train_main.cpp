@@ -203,16 +203,6 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   int mirrored_for = -1;
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     auto& image = set.images[i];
-    // In range: every corner on the road inside the detector's region.
-    for (const auto& a : image.annotations) {
-      bool in = true;
-      for (const auto& p : a.quad) {
-        Eigen::Vector2d g;
-        in = in && camera->image_to_ground({p[0], p[1]}, g) && g.x() >= region.x_near_m &&
-             g.x() <= region.x_far_m && g.y() <= region.y_left_m && g.y() >= region.y_right_m;
-      }
-      image.in_range.push_back(in);
-    }
     const std::string path = drive ? dir + "/frames.y4m#" + image.name : dir + "/images/" + image.name;
     cv::Mat grey;
     if (drive) {
@@ -231,8 +221,20 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       fail(path + ": image is " + std::to_string(grey.cols) + "x" + std::to_string(grey.rows) +
            ", the camera " + std::to_string(camera->width()) + "x" +
            std::to_string(camera->height()));
-    detector.detect(grey);
+    detector.detect_still(grey);
     ++loaded;
+    // In range: every corner on the road inside the detector's region (with
+    // the horizon where this image's lane lines put it).
+    for (const auto& a : image.annotations) {
+      bool in = true;
+      for (const auto& p : a.quad) {
+        Eigen::Vector2d g;
+        in = in && camera->image_to_ground({p[0], p[1] - static_cast<float>(detector.horizon_shift())}, g) && g.x() >= region.x_near_m &&
+             g.x() <= region.x_far_m && g.y() <= region.y_left_m && g.y() >= region.y_right_m;
+      }
+      image.in_range.push_back(in);
+    }
+
     for (const Candidate& c : detector.candidates()) {
       Detection where{};
       detector.locate(c, where);
