@@ -98,7 +98,7 @@ struct DetectorConfig {
   // measurement moves the estimate by horizon_gain of the difference.
   // detect_still() measures and applies it on the image itself.
   bool horizon_from_lanes = false;
-  float horizon_gain = 0.2f;
+  float horizon_gain = 0.05f;
   int horizon_max_shift_px = 40;
   // The bonnet outline moves with the horizon: on for a camera whose mount
   // is what changes (the real dataset's two recording set-ups), off when
