@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <bitset>
 #include <cmath>
-#include <cstdlib>
 
 namespace markloop::perception {
 namespace {
@@ -12,6 +11,7 @@ struct Crossing {
   float x, y;
   std::uint8_t a, b;  // the two segments
 };
+static_assert(kMaxHorizonSegments <= 256, "segment indexes are bytes");
 
 // Whether segment s points at (x, y): the angle between it and the line from
 // its middle to the point is under max_angle (sine compared, no trigonometry).

@@ -2,6 +2,7 @@
 // are the C allocation functions (OpenCV allocates matrices with malloc and
 // posix_memalign), all counted while frames are processed.
 #include <cmath>
+#include <numbers>
 #include <cstdlib>
 
 #include <catch2/catch_test_macros.hpp>
@@ -71,7 +72,7 @@ TEST_CASE("the horizon from the lane lines allocates nothing, when it moves the 
   std::vector<cv::Mat> frames;
   for (const double pitch_deg : {-1.0, 1.0}) {
     CameraMounting mounting = calibrated.mounting();
-    mounting.pitch_rad += pitch_deg * M_PI / 180.0;
+    mounting.pitch_rad += pitch_deg * std::numbers::pi / 180.0;
     const CameraModel actual = CameraModel::pinhole(calibrated.width(), calibrated.height(),
                                                     calibrated.intrinsics(), mounting);
     frames.push_back(render_road(actual, {{3.0, 40.0, 1.7, 1.85},

@@ -1,9 +1,11 @@
 #include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
 
 #include <catch2/catch_approx.hpp>
 #include <catch2/catch_test_macros.hpp>
+#include <opencv2/core.hpp>
 #include <opencv2/core/persistence.hpp>
 
 #include "perception/marking_classes.hpp"
@@ -87,6 +89,56 @@ TEST_CASE("bird's-eye view: nothing is read from below the bonnet's outline") {
     }
   CHECK(hidden > 100);
   CHECK(seen > 100);
+}
+
+TEST_CASE("bird's-eye view: a row shift reads the image lower; the bonnet moves only when asked") {
+  const CameraModel camera = default_camera_model();
+  BirdsEyeRegion region;
+  ImageOutline bonnet;  // flat, 60 rows above the image's bottom
+  const float bonnet_row = static_cast<float>(camera.height() - 60);
+  bonnet.points[0] = {0.0f, bonnet_row};
+  bonnet.count = 1;
+  BirdsEyeView view(camera, region, bonnet);
+  // A frame whose grey level encodes the image row.
+  cv::Mat frame(camera.height(), camera.width(), CV_8UC1);
+  for (int v = 0; v < frame.rows; ++v) frame.row(v).setTo(v / 2);
+  cv::Mat out(view.rows(), view.cols(), CV_8UC1);
+  constexpr int kShift = 20;
+  for (const int outline_shift : {0, kShift}) {
+    view.set_row_shift(kShift, outline_shift);
+    CHECK(view.row_shift() == kShift);
+    view.warp(frame, out);
+    const double outline = static_cast<double>(bonnet_row) + outline_shift;
+    int checked = 0, hidden = 0, below_fixed_outline = 0;
+    for (int r = 0; r < view.rows(); ++r)
+      for (int c = 0; c < view.cols(); ++c) {
+        Eigen::Vector2d pixel;
+        if (!camera.ground_to_image({view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel))
+          continue;
+        const double read_row = pixel.y() + kShift;
+        if (view.valid().at<std::uint8_t>(r, c) == 0) {
+          hidden += read_row + 1.0 >= outline ? 1 : 0;
+          continue;
+        }
+        // Nothing read at or below the outline (moved or not) ...
+        CHECK(read_row + 1.0 < outline);
+        // ... and what is read lies kShift rows below the calibration's pixel.
+        CHECK(std::abs(out.at<std::uint8_t>(r, c) - read_row / 2.0) <= 1.01);
+        below_fixed_outline += read_row + 1.0 >= bonnet_row ? 1 : 0;
+        ++checked;
+      }
+    CHECK(checked > 1000);
+    CHECK(hidden > 100);
+    // The moved outline uncovers the rows it left.
+    if (outline_shift == 0)
+      CHECK(below_fixed_outline == 0);
+    else
+      CHECK(below_fixed_outline > 100);
+  }
+  // Back to the calibration: as built.
+  view.set_row_shift(0, 0);
+  const BirdsEyeView fresh(camera, region, bonnet);
+  CHECK(cv::countNonZero(view.valid() != fresh.valid()) == 0);
 }
 
 TEST_CASE("detector: a painted block is found where it lies on the road") {
@@ -215,7 +267,7 @@ TEST_CASE("horizon: lane lines meeting at a point give its row; strays and paral
 TEST_CASE("detector: the horizon from the lane lines undoes a camera pitched other than calibrated") {
   const CameraModel calibrated = default_camera_model();
   CameraMounting mounting = calibrated.mounting();
-  mounting.pitch_rad += 1.0 * M_PI / 180.0;  // looks 1 degree further down than calibrated
+  mounting.pitch_rad += 1.0 * std::numbers::pi / 180.0;  // looks 1 degree further down than calibrated
   const CameraModel actual =
       CameraModel::pinhole(calibrated.width(), calibrated.height(), calibrated.intrinsics(), mounting);
   // Four lane lines, dashes between, and a legend-sized block at 10 m.
