@@ -389,10 +389,15 @@ TEST_CASE("Honda calibration: ground scale and detector region from honda.yaml")
   CHECK(config.hidden_below.row_at(0.0f) == Catch::Approx(438.0));
   CHECK(config.hidden_below.row_at(50.0f) == Catch::Approx(433.0));
   CHECK(config.hidden_below.row_at(900.0f) == Catch::Approx(478.0));
-  // The sim camera's file has no detector keys: defaults stay.
+  // Two mountings among the clips: the horizon is measured, the bonnet follows.
+  CHECK(config.horizon_from_lanes);
+  CHECK(config.hidden_below_follows_horizon);
+  // The sim camera's file has no detector keys: defaults stay (it is
+  // calibrated exactly: no horizon measured).
   DetectorConfig defaults;
   REQUIRE(load_detector_config(kCameras + "sim.yaml", defaults, error));
   CHECK(defaults.region.x_far_m == Catch::Approx(DetectorConfig{}.region.x_far_m));
+  CHECK_FALSE(defaults.horizon_from_lanes);
 }
 
 TEST_CASE("detector config: bad values are reported with the file") {
@@ -424,5 +429,33 @@ TEST_CASE("detector config: bad values are reported with the file") {
   }
   CHECK_FALSE(load_detector_config(path, config, error));
   CHECK(error.find("point 3: columns must increase") != std::string::npos);
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "detector_horizon_from_lanes" << 2;
+  }
+  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK(error == path + ": detector_horizon_from_lanes must be 0 or 1");
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "detector_horizon_max_shift_px" << -3;
+  }
+  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK(error.find("detector_horizon_max_shift_px must be a whole number 0..200") != std::string::npos);
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "detector_horizon_gain" << 0.0;
+  }
+  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK(error.find("detector_horizon_gain") != std::string::npos);
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    fs << "detector_horizon_from_lanes" << 1 << "detector_hidden_below_follows_horizon" << 1
+       << "detector_horizon_max_shift_px" << 25 << "detector_horizon_gain" << 0.1;
+  }
+  REQUIRE(load_detector_config(path, config, error));
+  CHECK(config.horizon_from_lanes);
+  CHECK(config.hidden_below_follows_horizon);
+  CHECK(config.horizon_max_shift_px == 25);
+  CHECK(config.horizon_gain == Catch::Approx(0.1));
   CHECK_FALSE(load_detector_config("/nonexistent/camera.yaml", config, error));
 }
