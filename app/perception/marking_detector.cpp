@@ -106,7 +106,7 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   const std::size_t max_labels = static_cast<std::size_t>(rows) * ((cols + 1) / 2 + 1);
   parent_.assign(max_labels, 0);
   label_box_.assign(max_labels, Part{});
-  label_moments_.assign(max_labels, Moments{});
+  label_moments_.assign(config.horizon_from_lanes ? max_labels : 0, Moments{});
   parts_.assign(kMaxParts, Part{});
   group_parent_.assign(kMaxParts, 0);
   group_candidate_.assign(kMaxParts, -1);
@@ -463,7 +463,7 @@ std::size_t MarkingDetector::label_parts() {
         label = next++;
         parent[label] = label;
         label_box_[label] = Part{c, r, c, r, 0, 0};
-        label_moments_[label] = Moments{};
+        if (lane_axes) label_moments_[label] = Moments{};
       }
       row[c] = label;
       Part& box = label_box_[label];

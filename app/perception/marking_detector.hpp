@@ -4,6 +4,7 @@
 //   grey frame --(lookup-table warp)--> bird's-eye view of the road region
 //     --> bright paint: pixel above the local road brightness (integral image)
 //     --> connected regions (run-length union-find), lane lines set apart
+//         (optionally, where they meet places the horizon: horizon.hpp)
 //     --> groups: parts close along and across the road (letters of a word,
 //         digits of a number, crosswalk stripes) become one candidate
 //     --> features (HOG of the normalised patch, occupancy, size)
@@ -164,8 +165,8 @@ class MarkingDetector {
   // next call.
   std::span<const Detection> detect(const cv::Mat& grey);
   // For an image unrelated to the frames before it: with horizon_from_lanes,
-  // its own lane lines place the horizon (the view is warped twice when they
-  // move it); otherwise as detect().
+  // its own lane lines place the horizon (the view is warped again where
+  // they put it, up to three looks in all); otherwise as detect().
   std::span<const Detection> detect_still(const cv::Mat& grey);
 
   // Image rows the view is read below the calibration's (horizon_from_lanes).

@@ -2,8 +2,8 @@
 // are the C allocation functions (OpenCV allocates matrices with malloc and
 // posix_memalign), all counted while frames are processed.
 #include <cmath>
-#include <numbers>
 #include <cstdlib>
+#include <numbers>
 
 #include <catch2/catch_test_macros.hpp>
 
