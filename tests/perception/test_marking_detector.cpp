@@ -402,57 +402,33 @@ TEST_CASE("Honda calibration: ground scale and detector region from honda.yaml")
 
 TEST_CASE("detector config: bad values are reported with the file") {
   const std::string path = "/tmp/markloop-detector-config-test.yaml";
-  {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    fs << "detector_x_near_m" << 10.0 << "detector_x_far_m" << 5.0;
-  }
   DetectorConfig config;
   std::string error;
-  CHECK_FALSE(load_detector_config(path, config, error));
+  // Writes the keys and values given, in turn, and reads the file back.
+  const auto load = [&](const auto&... keys_and_values) {
+    {
+      cv::FileStorage fs(path, cv::FileStorage::WRITE);
+      ((fs << keys_and_values), ...);
+    }
+    return load_detector_config(path, config, error);
+  };
+  CHECK_FALSE(load("detector_x_near_m", 10.0, "detector_x_far_m", 5.0));
   CHECK(error.find(path) == 0);
   CHECK(error.find("empty") != std::string::npos);
-  {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    fs << "detector_min_score" << 3.0;
-  }
-  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK_FALSE(load("detector_min_score", 3.0));
   CHECK(error.find("detector_min_score") != std::string::npos);
-  {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    fs << "detector_hidden_below" << std::vector<int>{0, 400, 300};
-  }
-  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK_FALSE(load("detector_hidden_below", std::vector<int>{0, 400, 300}));
   CHECK(error.find("detector_hidden_below must be a list") != std::string::npos);
-  {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    fs << "detector_hidden_below" << std::vector<int>{0, 400, 300, 420, 200, 430};
-  }
-  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK_FALSE(load("detector_hidden_below", std::vector<int>{0, 400, 300, 420, 200, 430}));
   CHECK(error.find("point 3: columns must increase") != std::string::npos);
-  {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    fs << "detector_horizon_from_lanes" << 2;
-  }
-  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK_FALSE(load("detector_horizon_from_lanes", 2));
   CHECK(error == path + ": detector_horizon_from_lanes must be 0 or 1");
-  {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    fs << "detector_horizon_max_shift_px" << -3;
-  }
-  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK_FALSE(load("detector_horizon_max_shift_px", -3));
   CHECK(error.find("detector_horizon_max_shift_px must be a whole number 0..200") != std::string::npos);
-  {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    fs << "detector_horizon_gain" << 0.0;
-  }
-  CHECK_FALSE(load_detector_config(path, config, error));
+  CHECK_FALSE(load("detector_horizon_gain", 0.0));
   CHECK(error.find("detector_horizon_gain") != std::string::npos);
-  {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    fs << "detector_horizon_from_lanes" << 1 << "detector_hidden_below_follows_horizon" << 1
-       << "detector_horizon_max_shift_px" << 25 << "detector_horizon_gain" << 0.1;
-  }
-  REQUIRE(load_detector_config(path, config, error));
+  REQUIRE(load("detector_horizon_from_lanes", 1, "detector_hidden_below_follows_horizon", 1,
+               "detector_horizon_max_shift_px", 25, "detector_horizon_gain", 0.1));
   CHECK(config.horizon_from_lanes);
   CHECK(config.hidden_below_follows_horizon);
   CHECK(config.horizon_max_shift_px == 25);
