@@ -225,11 +225,12 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
     ++loaded;
     // In range: every corner on the road inside the detector's region (with
     // the horizon where this image's lane lines put it).
+    const float shift = static_cast<float>(detector.horizon_shift());
     for (const auto& a : image.annotations) {
       bool in = true;
       for (const auto& p : a.quad) {
         Eigen::Vector2d g;
-        in = in && camera->image_to_ground({p[0], p[1] - static_cast<float>(detector.horizon_shift())}, g) && g.x() >= region.x_near_m &&
+        in = in && camera->image_to_ground({p[0], p[1] - shift}, g) && g.x() >= region.x_near_m &&
              g.x() <= region.x_far_m && g.y() <= region.y_left_m && g.y() >= region.y_right_m;
       }
       image.in_range.push_back(in);
