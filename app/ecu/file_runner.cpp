@@ -125,6 +125,9 @@ int run_file_mode(const RunOptions& options) {
   }
   cv::Mat grey(format.height, format.width, CV_8UC1);
   detail::start_up(ecu, config, quiet);
+  // Ready as on the car: SIGTERM and SIGINT from now on save the map.
+  platform::SystemdNotifier systemd = detail::open_systemd_notifier();
+  (void)systemd.notify("READY=1");
 
   can::CandumpRecord next{};
   bool have_next = false;

@@ -98,10 +98,7 @@ int run_live_mode(const RunOptions& options) {
     std::fprintf(stderr, "markloop: timerfd: %s\n", ec.message().c_str());
     return 2;
   }
-  platform::SystemdNotifier systemd;
-  if (auto ec = systemd.open())
-    std::fprintf(stderr, "markloop: NOTIFY_SOCKET unusable (%s): no systemd notifications\n",
-                 ec.message().c_str());
+  platform::SystemdNotifier systemd = detail::open_systemd_notifier();
   detail::start_up(ecu, config, quiet);
 
   const std::array<can::CanFilter, 2> filters = {can::CanFilter::exact(dbc::VehicleOdometry::kId),

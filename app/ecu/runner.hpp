@@ -10,6 +10,7 @@
 #include "ecu/ecu.hpp"
 #include "perception/camera_model.hpp"
 #include "perception/marking_detector.hpp"
+#include "platform/os.hpp"
 #include "platform/unique_fd.hpp"
 
 namespace markloop::ecu {
@@ -35,6 +36,9 @@ platform::UniqueFd open_stop_signals();
 int pending_stop_signal(int signal_fd);
 // Loads the map, then locks memory and raises priority as configured; reports on stderr.
 void start_up(Ecu& ecu, const EcuConfig& config, bool quiet);
+// The sd_notify channel of $NOTIFY_SOCKET (a no-op without one); a socket
+// that cannot be used is reported on stderr, never fatal.
+platform::SystemdNotifier open_systemd_notifier();
 // Saves the map when configured; reports failures on stderr.
 void shut_down(Ecu& ecu, const EcuConfig& config, bool quiet);
 // Figures of the run on stderr and, when asked, as JSON.

@@ -29,6 +29,14 @@ int pending_stop_signal(int signal_fd) {
   return number;
 }
 
+platform::SystemdNotifier open_systemd_notifier() {
+  platform::SystemdNotifier systemd;
+  if (auto ec = systemd.open())
+    std::fprintf(stderr, "markloop: NOTIFY_SOCKET unusable (%s): no systemd notifications\n",
+                 ec.message().c_str());
+  return systemd;
+}
+
 void start_up(Ecu& ecu, const EcuConfig& config, bool quiet) {
   const MapLoadResult map = ecu.load_map();
   if (map.outcome == MapLoadOutcome::kRejected)
