@@ -6,8 +6,8 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cstdlib>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <thread>
@@ -17,8 +17,8 @@
 #include "ecu/config.hpp"
 #include "ecu/map_store.hpp"
 #include "ecu_test_support.hpp"
-#include "notify_listener.hpp"
 #include "io/y4m.hpp"
+#include "notify_listener.hpp"
 #include "perception/camera_model.hpp"
 
 using namespace markloop;
@@ -82,7 +82,10 @@ int run_and_signal(const fs::path& dir, int signal_number, const fs::path& map,
   // A fixed pause raced the start-up under the sanitizers on a busy machine:
   // a signal before the ECU blocks it kills the process instead.
   const std::string message = ready.receive(60s);
-  if (message != "READY=1") kill(pid, SIGKILL);
+  if (message != "READY=1") {
+    kill(pid, SIGKILL);
+    waitpid(pid, nullptr, 0);
+  }
   REQUIRE(message == "READY=1");
   std::this_thread::sleep_for(200ms);  // a few frames in, far from the end
   const auto signalled = std::chrono::steady_clock::now();
