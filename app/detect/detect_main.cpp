@@ -18,7 +18,7 @@
 namespace {
 
 constexpr const char* kUsage =
-    "usage: markloop-detect --camera FILE [--min-score S] IMAGE...\n"
+    "usage: markloop-detect --camera FILE [--min-score S] [--whole-only] IMAGE...\n"
     "\n"
     "Detects and classifies road markings in still images (PNG or JPEG, any\n"
     "colour; converted to grey) taken by the camera FILE describes (OpenCV\n"
@@ -28,12 +28,15 @@ constexpr const char* kUsage =
     "   \"ground\": [x, y]}\n"
     "quad: corners in the image's pixels (near left, near right, far right, far\n"
     "left); ground: centre on the road in metres, vehicle frame (x ahead, y left).\n"
+    "A marking the bonnet or the region's near end cuts (its far end seen whole)\n"
+    "is reported with \"partial\": true, its quad and ground the visible part's.\n"
     "With detector_horizon_from_lanes: 1 in FILE, each image's lane lines place\n"
     "the horizon (a camera pitched other than calibrated) before detection.\n"
     "\n"
     "  --camera FILE   calibration (required)\n"
     "  --min-score S   report detections scoring at least S (0..1; default the\n"
-    "                  detector's, 0.6)\n";
+    "                  detector's, 0.6)\n"
+    "  --whole-only    report no partial markings\n";
 
 // JSON string escaping for file names.
 std::string json_string(const std::string& s) {
@@ -61,12 +64,17 @@ int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-detect";
   std::string camera_path;
   double min_score = -1.0;
+  bool whole_only = false;
   std::vector<std::string> images;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
       std::fputs(kUsage, stdout);
       return 0;
+    }
+    if (arg == "--whole-only") {
+      whole_only = true;
+      continue;
     }
     if (arg == "--camera" || arg == "--min-score") {
       if (i + 1 >= argc) markloop::cli::fail(arg + ": needs a value (see --help)");
@@ -96,6 +104,7 @@ int main(int argc, char** argv) {
   DetectorConfig config;
   if (!load_detector_config(camera_path, config, error)) markloop::cli::fail(error);
   if (min_score >= 0.0) config.min_score = static_cast<float>(min_score);
+  if (whole_only) config.report_partial_in_stills = false;
   MarkingDetector detector(*camera, config);
 
   int failures = 0;
@@ -133,8 +142,8 @@ int main(int argc, char** argv) {
       for (int k = 0; k < 4; ++k)
         std::printf("%s[%.1f, %.1f]", k ? ", " : "", static_cast<double>(d.quad[k][0]),
                     static_cast<double>(d.quad[k][1]));
-      std::printf("], \"ground\": [%.2f, %.2f]}\n", static_cast<double>(d.ground_x),
-                  static_cast<double>(d.ground_y));
+      std::printf("], \"ground\": [%.2f, %.2f]%s}\n", static_cast<double>(d.ground_x),
+                  static_cast<double>(d.ground_y), d.partial ? ", \"partial\": true" : "");
     }
   }
   if (std::fflush(stdout) != 0) markloop::cli::fail("error writing the output");

@@ -65,6 +65,15 @@ class BirdsEyeView {
   void set_row_shift(int rows, int outline_rows);
   int row_shift() const { return row_shift_; }
 
+  // True when the output pixel is unseen because its source lies on the
+  // bonnet or below the image's last row (not beyond the image's sides or
+  // top): the road the car is about to drive over.
+  bool unseen_below(int row, int col) const {
+    const std::size_t i = static_cast<std::size_t>(row) * cols_ + col;
+    return source_row_[i] < 0 && calibrated_row_[i] != kNoSource &&
+           calibrated_row_[i] + row_shift_ >= 0;
+  }
+
   // Ground point (vehicle frame, metres) of an output pixel position
   // (fractional: pixel centres are at integers).
   float ground_x(float row) const { return region_.x_far_m - (row + 0.5f) * region_.x_step_m; }

@@ -18,6 +18,12 @@ constexpr int kStillLooks = 3;
 // Lines (and dashes) shorter than this on the road say too little about
 // their direction to place the horizon.
 constexpr double kMinHorizonLineM = 1.5;
+// Edges of the view (at_edge_ bits). Near: the unseen lies below, on the
+// bonnet or under the image (or the region's near end): markings leave the
+// view there as the car drives on, seen whole before. Other: the far end,
+// the region's sides and the image's sides.
+constexpr std::uint8_t kNearEdge = 1;
+constexpr std::uint8_t kOtherEdge = 2;
 
 int find_root(std::int32_t* parent, int i) {
   while (parent[i] != i) {
@@ -127,15 +133,22 @@ void MarkingDetector::update_view_masks() {
     }
   }
   // Pixels on the view's border or next to (or on) one the camera does not
-  // see: paint there may go on beyond what is seen.
+  // see: paint there may go on beyond what is seen. Near only where every
+  // unseen neighbour is level or below and unseen_below().
+  const auto unseen = [&](int r, int c) { return valid.ptr<std::uint8_t>(r)[c] == 0; };
   for (int r = 0; r < rows; ++r) {
     std::uint8_t* out = at_edge_.ptr<std::uint8_t>(r);
     for (int c = 0; c < cols; ++c) {
-      bool edge = r == 0 || c == 0 || r == rows - 1 || c == cols - 1;
+      bool other = r == 0 || c == 0 || c == cols - 1;
+      bool near = r == rows - 1;
       for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr)
-        for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc)
-          edge = edge || valid.ptr<std::uint8_t>(rr)[cc] == 0;
-      out[c] = edge ? 1 : 0;
+        for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc) {
+          if (!unseen(rr, cc)) continue;
+          const bool below = rr >= r && birdseye_.unseen_below(rr, cc);
+          near = near || below;
+          other = other || !below;
+        }
+      out[c] = other ? kOtherEdge : near ? kNearEdge : 0;
     }
   }
 }
@@ -146,9 +159,13 @@ bool MarkingDetector::usable(const cv::Mat& grey) const {
 }
 
 std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
+  return detect_frame(grey, false);
+}
+
+std::span<const Detection> MarkingDetector::detect_frame(const cv::Mat& grey, bool still) {
   ++counters_.frames;
   if (!usable(grey)) return reject_frame();
-  process(grey);
+  process(grey, still);
   if (config_.horizon_from_lanes && horizon_known_) {
     if (const std::optional<float> measured = measure_horizon_shift()) {
       ++counters_.horizon_measured;
@@ -165,13 +182,13 @@ std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
 }
 
 std::span<const Detection> MarkingDetector::detect_still(const cv::Mat& grey) {
-  if (!config_.horizon_from_lanes || !horizon_known_) return detect(grey);
+  if (!config_.horizon_from_lanes || !horizon_known_) return detect_frame(grey, true);
   ++counters_.frames;
   if (!usable(grey)) return reject_frame();
   horizon_estimate_ = 0.0f;
   set_horizon_shift(0);
   const DetectorCounters before = counters_;
-  process(grey);
+  process(grey, true);
   std::optional<float> measured = measure_horizon_shift();
   const bool placed = measured.has_value();
   for (int look = 1; look < kStillLooks && measured; ++look) {
@@ -180,7 +197,7 @@ std::span<const Detection> MarkingDetector::detect_still(const cv::Mat& grey) {
     horizon_estimate_ = *measured;
     counters_ = before;
     set_horizon_shift(rows);
-    process(grey);
+    process(grey, true);
     measured = measure_horizon_shift();
   }
   ++(placed ? counters_.horizon_measured : counters_.horizon_unmeasured);
@@ -264,7 +281,7 @@ void MarkingDetector::note_lane_segment(const Part& box, const Moments& sums) {
   lane_lengths_[slot] = static_cast<float>(length);
 }
 
-void MarkingDetector::process(const cv::Mat& grey) {
+void MarkingDetector::process(const cv::Mat& grey, bool still) {
   detection_count_ = 0;
   candidate_count_ = 0;
   birdseye_.warp(grey, bev_);
@@ -285,7 +302,9 @@ void MarkingDetector::process(const cv::Mat& grey) {
       ++counters_.pieces;
       continue;
     }
-    if (candidate.clipped && !config_.report_clipped) {
+    const bool partial = candidate.clipped && candidate.clipped_near_only && still &&
+                         config_.report_partial_in_stills;
+    if (candidate.clipped && !config_.report_clipped && !partial) {
       ++counters_.clipped;
       continue;
     }
@@ -300,8 +319,10 @@ void MarkingDetector::process(const cv::Mat& grey) {
     Detection& d = detections_[detection_count_++];
     d.label = static_cast<Label>(candidate.predicted);
     d.score = candidate.score;
+    d.partial = partial;
     locate(candidate, d);
     ++counters_.detections;
+    if (partial) ++counters_.partial;
   }
 }
 
@@ -594,7 +615,9 @@ void MarkingDetector::group_parts(std::size_t part_count) {
       ++counters_.oversize;
       continue;
     }
-    c.clipped = touches_edge(c);
+    const std::uint8_t edges = touched_edges(c);
+    c.clipped = edges != 0;
+    c.clipped_near_only = edges == kNearEdge;
     candidates_[kept++] = c;
   }
   candidate_count_ = kept;
@@ -615,18 +638,18 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
   return false;
 }
 
-bool MarkingDetector::touches_edge(const Candidate& c) const {
+std::uint8_t MarkingDetector::touched_edges(const Candidate& c) const {
   // Paint of the box next to the edge of the view: the marking may go on
   // beyond it. The box alone would say so for every marking whose box
   // corner reaches into the unseen corners of the view.
+  std::uint8_t touched = 0;
   for (int row = c.row0; row <= c.row1; ++row) {
     const std::uint8_t* paint = mask_.ptr<std::uint8_t>(row);
     const std::uint8_t* edge = at_edge_.ptr<std::uint8_t>(row);
-    int touching = 0;
-    for (int col = c.col0; col <= c.col1; ++col) touching |= paint[col] & edge[col];
-    if (touching != 0) return true;
+    for (int col = c.col0; col <= c.col1; ++col) touched |= paint[col] & edge[col];
+    if (touched == (kNearEdge | kOtherEdge)) break;
   }
-  return false;
+  return touched;
 }
 
 void MarkingDetector::classify(Candidate& candidate) {

@@ -40,6 +40,9 @@ struct Detection {
   float score;                               // classifier confidence 0..1
   std::array<std::array<float, 2>, 4> quad;  // corners in the original image, pixels
   float ground_x, ground_y;                  // centre on the road, vehicle frame, metres
+  // detect_still() only: cut by the view's near edge; quad and centre are the
+  // visible part's.
+  bool partial;
 };
 inline constexpr std::size_t kMaxDetections = 32;
 
@@ -91,6 +94,11 @@ struct DetectorConfig {
   // Markings cut by the edge of the view are classified (for training) but
   // not reported: their class and centre are guesses.
   bool report_clipped = false;
+  // ... except, from detect_still(), one cut only by the near edge (the
+  // bonnet, the image's bottom, the region's near end), which shows its far
+  // end whole: a still image has no earlier frame that saw the rest (a
+  // stream did, so detect() leaves it out). Reported with `partial` set.
+  bool report_partial_in_stills = true;
   // The horizon from the lane lines (horizon.hpp): a camera pitched other
   // than its calibration says sees the road stretched or squashed along the
   // bird's-eye view. When on, each frame's lane lines measure where the
@@ -123,7 +131,8 @@ struct DetectorCounters {
   std::uint64_t candidates = 0;          // groups classified
   std::uint64_t candidates_dropped = 0;  // over capacity (kMaxCandidates)
   std::uint64_t oversize = 0;            // parts or groups too large to be a marking
-  std::uint64_t clipped = 0;             // groups cut by the region's or the image's edge
+  std::uint64_t clipped = 0;             // groups cut by the region's or the image's edge, left out
+  std::uint64_t partial = 0;             // ... cut by the near edge, reported by detect_still()
   std::uint64_t rejected = 0;            // classifier said: not a marking
   std::uint64_t low_score = 0;           // marking class below min_score
   std::uint64_t pieces = 0;              // inside a larger marking (is_piece_of_larger)
@@ -141,6 +150,7 @@ struct Candidate {
   int parts;
   float length_m, width_m;  // along and across the road
   bool clipped;             // touches the edge of the view: seen only in part
+  bool clipped_near_only;   // ... and only its near edge, where the car drives on
   Features features;
   int predicted;  // class index, kRejectClass for "not a marking"
   float score;
@@ -201,10 +211,12 @@ class MarkingDetector {
   std::size_t label_parts();
   void group_parts(std::size_t part_count);
   void classify(Candidate& candidate);
-  bool touches_edge(const Candidate& candidate) const;
+  // kNearEdge | kOtherEdge bits of the edge pixels the candidate's paint touches.
+  std::uint8_t touched_edges(const Candidate& candidate) const;
   bool usable(const cv::Mat& grey) const;
   std::span<const Detection> reject_frame();
-  void process(const cv::Mat& grey);
+  std::span<const Detection> detect_frame(const cv::Mat& grey, bool still);
+  void process(const cv::Mat& grey, bool still);
   void note_lane_segment(const Part& box, const Moments& sums);
   std::optional<float> measure_horizon_shift() const;
   void set_horizon_shift(int rows);
@@ -221,7 +233,7 @@ class MarkingDetector {
   cv::Mat mask_;      // CV_8UC1 paint mask
   cv::Mat integral_;        // CV_32SC1 (rows+1) x (cols+1): bird's-eye sums
   cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (for the view's row shift)
-  cv::Mat at_edge_;         // CV_8UC1: 1 where a pixel borders what the camera does not see
+  cv::Mat at_edge_;         // CV_8UC1: kNearEdge / kOtherEdge where a pixel borders what is not seen
   std::vector<std::int16_t> run_above_;     // paint run length down to each pixel
   std::vector<std::int16_t> run_below_;     // ... and from it downwards
   std::vector<std::int32_t> pixel_labels_;  // provisional label per pixel, -1 none

@@ -1,5 +1,6 @@
 #include <cmath>
 #include <numbers>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -219,6 +220,67 @@ TEST_CASE("detector: a piece inside a larger marking is no detection of its own"
   CHECK_FALSE(is_piece_of_larger(candidates, 4));
   CHECK(is_piece_of_larger(candidates, 6));
   CHECK_FALSE(is_piece_of_larger(candidates, 8));
+}
+
+TEST_CASE("detector: a still reports a marking cut by the near edge, marked partial; a stream does not") {
+  const CameraModel camera = default_camera_model();
+  // A model that calls every candidate a forward arrow, sure of it: what is
+  // tested is which candidates are reported.
+  static const std::vector<float> zeros(kFeatureCount, 0.0f), ones(kFeatureCount, 1.0f);
+  static std::array<float, kClassifierOutputs> bias{};
+  const int forward = static_cast<int>(*marking_class_from_name("forward"));
+  bias[forward] = 20.0f;
+  static const std::array<float, kClassifierOutputs> no_weights{};
+  static const float zero = 0.0f;
+  MlpModel model;
+  model.members = 1;
+  model.nets[0] = {kFeatureCount, 1, kClassifierOutputs, zeros.data(), ones.data(),
+                   zeros.data(), &zero, no_weights.data(), bias.data()};
+  REQUIRE(model_is_usable(model));
+  DetectorConfig config;
+  config.model = &model;
+  MarkingDetector detector(camera, config);
+  const double near = config.region.x_near_m, far = config.region.x_far_m;
+  const double left = config.region.y_left_m;
+  const std::vector<GroundRect> blocks = {
+      {near - 1.0, near + 1.4, 0.3, 0.9},     // across the near edge
+      {far - 1.2, far + 1.2, -0.9, -0.3},     // across the far edge
+      {14.0, 16.4, left - 0.5, left + 0.5},   // across the left edge
+      {9.0, 11.4, -2.9, -2.3},                // whole
+  };
+  const cv::Mat frame = render_road(camera, blocks);
+  const auto reported = [&](std::span<const Detection> detections, const GroundRect& block) {
+    const Detection* found = nullptr;
+    for (const Detection& d : detections)
+      if (d.ground_x >= block.x0 && d.ground_x <= block.x1 && d.ground_y >= block.y0 &&
+          d.ground_y <= block.y1)
+        found = &d;
+    return found;
+  };
+
+  const auto stream = detector.detect(frame);
+  REQUIRE(reported(stream, blocks[3]) != nullptr);
+  CHECK_FALSE(reported(stream, blocks[3])->partial);
+  for (int i = 0; i < 3; ++i) CHECK(reported(stream, blocks[i]) == nullptr);
+  CHECK(detector.counters().clipped == 3);
+
+  const auto still = detector.detect_still(frame);
+  const Detection* cut = reported(still, blocks[0]);
+  REQUIRE(cut != nullptr);
+  CHECK(cut->partial);
+  CHECK(cut->label == forward);
+  // Its centre is the visible part's: between the edge and the block's far end.
+  CHECK(cut->ground_x == Catch::Approx(0.5 * (near + blocks[0].x1)).margin(0.15));
+  CHECK(reported(still, blocks[1]) == nullptr);
+  CHECK(reported(still, blocks[2]) == nullptr);
+  REQUIRE(reported(still, blocks[3]) != nullptr);
+  CHECK_FALSE(reported(still, blocks[3])->partial);
+  CHECK(detector.counters().partial == 1);
+  CHECK(detector.counters().clipped == 3 + 2);
+
+  config.report_partial_in_stills = false;
+  MarkingDetector whole_only(camera, config);
+  CHECK(reported(whole_only.detect_still(frame), blocks[0]) == nullptr);
 }
 
 TEST_CASE("detector: an empty road gives nothing; wrong frames are counted, not processed") {

@@ -92,7 +92,8 @@ struct Sample {
   int clip;     // real: 60-frame block; sim: -1
   bool real;
   bool augmented;               // a shifted, rotated or mirrored copy: training only
-  bool clipped;                 // cut by the edge of the view: trained on, never reported
+  bool clipped;                 // cut by the edge of the view: trained on, not reported...
+  bool partial;                 // ... unless only by its near edge (DetectorConfig)
   std::array<float, 2> centre;  // quad centre in the image, pixels
   std::array<int, 4> box;       // bird's-eye box: col0, row0, col1, row1
 };
@@ -252,6 +253,7 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       s.label = kRejectClass;
       s.augmented = false;
       s.clipped = c.clipped;
+      s.partial = c.clipped && c.clipped_near_only && config.report_partial_in_stills;
       s.box = {c.col0, c.row0, c.col1, c.row1};
       for (const auto& a : image.annotations) {
         if (!inside(a.quad, s.centre[0], s.centre[1])) continue;
@@ -476,6 +478,7 @@ struct Score {
   int unjudged = 0;
   int wrong_label = 0;
   int on_nothing = 0;
+  int partial_right = 0, partial_wrong = 0;  // cut by the view's near edge, reported
 };
 
 void judge(const ImageSet& set, int image_index, const std::vector<const Sample*>& detections,
@@ -490,8 +493,8 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
     if (image.in_range[a]) ++score.annotated_in_range[label];
   }
   for (std::size_t i = 0; i < detections.size(); ++i) {
-    if (predicted[i] == kRejectClass || scores[i] < min_score || detections[i]->clipped ||
-        piece[i])
+    if (predicted[i] == kRejectClass || scores[i] < min_score ||
+        (detections[i]->clipped && !detections[i]->partial) || piece[i])
       continue;
     const std::string label(marking_class_name(static_cast<markloop::Label>(predicted[i])));
     // The real dataset does not annotate stop lines and crosswalks: such
@@ -518,16 +521,19 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
       ++score.correct[label];
       ++score.found[label];
       if (image.in_range[hit]) ++score.found_in_range[label];
+      if (s.partial) ++score.partial_right;
       continue;
     }
     ++score.detected[label];
+    if (s.partial) ++score.partial_wrong;
     if (hit >= 0)
       ++score.wrong_label;
     else
       ++score.on_nothing;
     if (std::getenv("MARKLOOP_TRAIN_LIST_FALSE") != nullptr)
-      std::printf("  false: %s %s %s at (%.0f, %.0f)\n", set.dir.c_str(), image.name.c_str(),
-                  label.c_str(), static_cast<double>(s.centre[0]), static_cast<double>(s.centre[1]));
+      std::printf("  false: %s %s %s at (%.0f, %.0f)%s\n", set.dir.c_str(), image.name.c_str(),
+                  label.c_str(), static_cast<double>(s.centre[0]), static_cast<double>(s.centre[1]),
+                  s.partial ? " (partial)" : "");
   }
   for (std::size_t a = 0; a < image.annotations.size(); ++a) {
     if (matched[a] || !marking_class_from_name(image.annotations[a].label)) continue;
@@ -610,6 +616,8 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
   std::printf("duplicates %d, wrong label %d, detections on no marking %d%s\n", score.duplicates,
               score.wrong_label, score.on_nothing,
               score.unjudged ? (", stop line/crosswalk (not annotated) " + std::to_string(score.unjudged)).c_str() : "");
+  std::printf("reported cut by the view's near edge (partial): %d right, %d wrong\n",
+              score.partial_right, score.partial_wrong);
   if (std::getenv("MARKLOOP_TRAIN_SHOW_MISSES") != nullptr)
     for (const auto& [what, n] : score.confusion) std::printf("  missed: %-30s %d\n", what.c_str(), n);
 }
