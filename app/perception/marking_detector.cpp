@@ -302,8 +302,7 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
       ++counters_.pieces;
       continue;
     }
-    const bool partial = candidate.clipped && candidate.clipped_near_only && still &&
-                         config_.report_partial_in_stills;
+    const bool partial = candidate.clipped_near_only && still && config_.report_partial_in_stills;
     if (candidate.clipped && !config_.report_clipped && !partial) {
       ++counters_.clipped;
       continue;

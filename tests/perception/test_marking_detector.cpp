@@ -226,12 +226,12 @@ TEST_CASE("detector: a still reports a marking cut by the near edge, marked part
   const CameraModel camera = default_camera_model();
   // A model that calls every candidate a forward arrow, sure of it: what is
   // tested is which candidates are reported.
-  static const std::vector<float> zeros(kFeatureCount, 0.0f), ones(kFeatureCount, 1.0f);
-  static std::array<float, kClassifierOutputs> bias{};
+  const std::vector<float> zeros(kFeatureCount, 0.0f), ones(kFeatureCount, 1.0f);
+  std::array<float, kClassifierOutputs> bias{};
   const int forward = static_cast<int>(*marking_class_from_name("forward"));
   bias[forward] = 20.0f;
-  static const std::array<float, kClassifierOutputs> no_weights{};
-  static const float zero = 0.0f;
+  const std::array<float, kClassifierOutputs> no_weights{};
+  const float zero = 0.0f;
   MlpModel model;
   model.members = 1;
   model.nets[0] = {kFeatureCount, 1, kClassifierOutputs, zeros.data(), ones.data(),
