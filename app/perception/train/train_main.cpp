@@ -68,6 +68,7 @@ constexpr const char* kUsage =
     "  --epochs N          training epochs (default 60)\n"
     "  --hidden N          hidden units (default 64)\n"
     "  --reject-weight W   factor on the reject class's loss weight (default 1)\n"
+    "  --real-weight W     factor on the loss weight of the real images' samples (default 1)\n"
     "  --weight-decay W    L2 weight decay (default 1e-4)\n"
     "  --out FILE.cpp      write the model trained on all training data\n"
     "  --evaluate-builtin  train nothing: judge the model compiled into this program on\n"
@@ -351,6 +352,8 @@ struct TrainOptions {
   int hidden = 64;
   unsigned seed = 1;
   float reject_weight = 1.0f;  // extra factor on the reject class's weight
+  // Extra factor on the real images' samples: the simulator's outnumber them.
+  float real_weight = 1.0f;
   float weight_decay = 1e-4f;
 };
 
@@ -411,7 +414,7 @@ Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& option
         const int s = order[start + j];
         xb.col(j) = x.col(s);
         target(data[s]->label, j) = 1.0f;
-        weight(j) = class_weight[data[s]->label];
+        weight(j) = class_weight[data[s]->label] * (data[s]->real ? options.real_weight : 1.0f);
       }
       const Eigen::MatrixXf pre = (m.w1 * xb).colwise() + m.b1;
       const Eigen::MatrixXf h = pre.cwiseMax(0.0f);
@@ -797,6 +800,8 @@ int main(int argc, char** argv) {
       options.members = static_cast<int>(markloop::cli::parse_whole(arg, value));
     else if (arg == "--hidden")
       options.hidden = static_cast<int>(markloop::cli::parse_whole(arg, value));
+    else if (arg == "--real-weight")
+      options.real_weight = static_cast<float>(markloop::cli::parse_number(arg, value));
     else if (arg == "--reject-weight")
       options.reject_weight = static_cast<float>(markloop::cli::parse_number(arg, value));
     else if (arg == "--weight-decay")
