@@ -30,6 +30,9 @@ done
 for tool in sim/markloop-sim app/ecu/markloop tests/hil/markloop-hil-can-check; do
   [ -x "$bin/$tool" ] || { echo "ecu-live-e2e: $bin/$tool missing (build first)" >&2; exit 1; }
 done
+# The VM runs the host's own v4l2-ctl to set vivid up.
+command -v v4l2-ctl >/dev/null ||
+  { echo "ecu-live-e2e: v4l2-ctl not found: run .ci/setup (package v4l-utils)" >&2; exit 1; }
 mkdir -p "$results"
 results=$(cd "$results" && pwd)
 drive=$results/drive
