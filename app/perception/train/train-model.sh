@@ -22,30 +22,31 @@ DATA=build/train-data
 SIM=build/host/sim/markloop-sim
 TRAIN=build/host/app/perception/train/markloop-train
 mkdir -p "$DATA"
+# training_set SEED DIR FRAMES [CAMERA]: rendered once, through CAMERA when
+# given (default the simulator's). The simulator writes the calibration it
+# used but not the detector_* keys (region, bonnet), so CAMERA's file then
+# replaces the set's camera.yaml.
+training_set() {
+  [ -f "$2/annotations.csv" ] && return
+  "$SIM" training-set --out "$2" --seed "$1" --frames "$3" ${4:+--camera "$4"}
+  [ -z "${4:-}" ] || cp "$4" "$2/camera.yaml"
+}
 sims=""
 for seed in 101 102 103 104 105; do
-  [ -f "$DATA/sim$seed/annotations.csv" ] ||
-    "$SIM" training-set --out "$DATA/sim$seed" --seed "$seed" --frames 600
+  training_set "$seed" "$DATA/sim$seed" 600
   sims="$sims --sim $DATA/sim$seed"
 done
 # The same kind of scenes seen through the real images' camera: the
 # classifier learns markings at that camera's bird's-eye resolution and smear
-# too, not at one camera's only. The simulator writes the calibration it used
-# but not the detector_* keys (region, bonnet), so the camera's file replaces it.
-honda_set() {  # SEED DIR FRAMES
-  [ -f "$2/annotations.csv" ] && return
-  "$SIM" training-set --out "$2" --seed "$1" --frames "$3" --camera app/cameras/honda.yaml
-  cp app/cameras/honda.yaml "$2/camera.yaml"
-}
+# too, not at one camera's only.
 for seed in 201 202 203; do
-  honda_set "$seed" "$DATA/honda$seed" 600
+  training_set "$seed" "$DATA/honda$seed" 600 app/cameras/honda.yaml
   sims="$sims --sim $DATA/honda$seed"
 done
-honda_set 9002 "$DATA/hondatest9002" 300
+training_set 9001 "$DATA/simtest9001" 300
+training_set 9002 "$DATA/hondatest9002" 300 app/cameras/honda.yaml
 [ -f "$DATA/drive-figure8-21/visible.csv" ] ||
   "$SIM" drive --scenario figure8 --seed 21 --out "$DATA/drive-figure8-21"
-[ -f "$DATA/simtest9001/annotations.csv" ] ||
-  "$SIM" training-set --out "$DATA/simtest9001" --seed 9001 --frames 300
 [ -f "$DATA/drive-loop-7/visible.csv" ] ||
   "$SIM" drive --scenario loop --seed 7 --out "$DATA/drive-loop-7"
 # Weight decay 3e-3 (default 1e-4): with only 13 real clips, the stronger
