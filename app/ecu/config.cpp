@@ -197,6 +197,8 @@ const std::vector<Key>& keys() {
                [](EcuConfig& c) -> double& { return c.engine.chain.row_width_m; }),
       real_key("engine.max_link_m", 0.1, 100000.0,
                [](EcuConfig& c) -> double& { return c.engine.chain.max_link_m; }),
+      integer_key("engine.max_skipped_rows", 0, 1,
+                  [](EcuConfig& c) -> unsigned& { return c.engine.chain.max_skipped_rows; }),
       real_key("engine.distance_tolerance_m", 0.001, 100.0,
                [](EcuConfig& c) -> double& { return c.engine.match.distance_tolerance_abs_m; }),
       real_key("engine.distance_tolerance_rel", 0.0, 0.1,

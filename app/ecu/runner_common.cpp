@@ -170,6 +170,7 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
       {"landmarks_flushed_ahead", e.landmarks_flushed_ahead},
       {"chain_breaks", e.chain_breaks},
       {"sequences_created", e.sequences_created},
+      {"sequences_over_skipped_row", e.sequences_over_skipped_row},
       {"queries", e.queries},
       {"candidates", e.candidates},
       {"candidates_too_recent", e.candidates_too_recent},
@@ -183,6 +184,7 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
       {"candidate_limit_hits", e.candidate_limit_hits},
       {"matches", e.matches},
       {"closures_extended", e.closures_extended},
+      {"matches_over_skipped_row", e.matches_over_skipped_row},
   };
   std::fprintf(out, " \"engine\": {");
   for (std::size_t i = 0; i < std::size(engine_counters); ++i)

@@ -25,6 +25,11 @@ struct ChainConfig {
   double row_width_m = 1.5;
   // A gap longer than this between rows breaks the chain.
   double max_link_m = 200.0;
+  // Rows a sequence may step over (0 or 1). A marking detected on one visit
+  // and missed on the other otherwise breaks every sequence through it; with
+  // 1, each new landmark also chains past one of its k - 1 earlier rows, so
+  // the visit that saw the marking holds sequences without it as well.
+  unsigned max_skipped_rows = 1;
 };
 
 struct MatchConfig {

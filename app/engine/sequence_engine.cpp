@@ -13,6 +13,7 @@ const char* validate(const EngineConfig& c) {
   const auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   const auto finite_non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
   if (c.chain.k < 2 || c.chain.k > kMaxSequenceLength) return "k must be between 2 and 10";
+  if (c.chain.max_skipped_rows > 1) return "rows skipped must be 0 or 1";
   if (!finite_positive(c.tracker.association_radius_m))
     return "association radius must be a positive number of metres";
   if (!finite_positive(c.tracker.commit_after_s))
@@ -197,50 +198,70 @@ void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
       rows_.clear();
       ++counters_.chain_breaks;
     }
-    if (rows_.size() == chain_config.k) rows_.erase_at(0);
+    if (rows_.size() == chain_config.k + chain_config.max_skipped_rows) rows_.erase_at(0);
     rows_.push_back(Row{landmark.station, {}});
   }
   if (!rows_.back().members.push_back(id)) {
     ++counters_.landmarks_unchained;
     return;
   }
-  if (rows_.size() == chain_config.k) chain(id, may_match, sink);
+  if (rows_.size() >= chain_config.k) chain(id, may_match, sink);
 }
 
 void SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {
   const unsigned k = config_.chain.k;
-  // One landmark from each earlier row, then the new one: every combination,
-  // so a marking missed on one lane leaves the chains through other lanes.
+  // The rows before the new landmark's, oldest first.
+  const unsigned earlier = static_cast<unsigned>(rows_.size()) - 1;
+  // Variant 0 takes the k - 1 rows just before; variant v (1 .. k - 1), when
+  // one more row is kept, takes the k rows before but the v-th newest: the
+  // sequences a visit that missed that row's marking would make. They are
+  // all stored; the skipping ones are only queried when no plain one matched,
+  // so two visits that both saw everything give one match, as before.
+  const unsigned variants = earlier == k ? k : 1;
+  std::array<std::size_t, kMaxSequenceLength> row_of{};  // rows_ index per position
+
   std::array<std::size_t, kMaxSequenceLength> choice{};
   std::array<LandmarkId, kMaxSequenceLength> ids{};
   ids[k - 1] = id;
   const std::span<const LandmarkId> sequence(ids.data(), k);
 
   MatchEvent candidate;
-  bool found = false;
+  bool found = false, found_over_skipped_row = false;
   unsigned made = 0;
-  for (;;) {
-    for (unsigned r = 0; r + 1 < k; ++r) ids[r] = rows_[r].members[choice[r]];
-    if (made == kMaxSequencesPerLandmark) {
-      ++counters_.sequences_capped;
-    } else {
-      ++made;
-      // One shape serves the query and the insertion.
-      SequenceShape shape;
-      if (database_.shape_of(sequence, shape)) {
-        if (may_match && match(sequence, shape, candidate) &&
-            (!found || candidate.residual_m < best_.residual_m)) {
-          best_ = candidate;
-          found = true;
+  for (unsigned variant = 0; variant < variants; ++variant) {
+    const std::size_t first_row = variant == 0 ? earlier - (k - 1) : earlier - k;
+    const std::size_t skipped = variant == 0 ? rows_.size() : earlier - variant;  // none: past the end
+    for (std::size_t r = 0, row = first_row; r + 1 < k; ++row)
+      if (row != skipped) row_of[r++] = row;
+    const bool query = may_match && (variant == 0 || !found);
+    // One landmark from each chosen row, then the new one: every combination,
+    // so a marking missed on one lane leaves the chains through other lanes.
+    choice.fill(0);
+    for (;;) {
+      for (unsigned r = 0; r + 1 < k; ++r) ids[r] = rows_[row_of[r]].members[choice[r]];
+      if (made == kMaxSequencesPerLandmark) {
+        ++counters_.sequences_capped;
+      } else {
+        ++made;
+        // One shape serves the query and the insertion.
+        SequenceShape shape;
+        if (database_.shape_of(sequence, shape)) {
+          if (query && match(sequence, shape, variant > 0, candidate) &&
+              (!found || candidate.residual_m < best_.residual_m)) {
+            best_ = candidate;
+            found = true;
+            found_over_skipped_row = variant > 0;
+          }
+          database_.add_sequence(sequence, shape);
+          ++counters_.sequences_created;
+          if (variant > 0) ++counters_.sequences_over_skipped_row;
         }
-        database_.add_sequence(sequence, shape);
-        ++counters_.sequences_created;
       }
+      unsigned r = 0;
+      while (r + 1 < k && choice[r] + 1 == rows_[row_of[r]].members.size()) choice[r++] = 0;
+      if (r + 1 >= k) break;
+      ++choice[r];
     }
-    unsigned r = 0;
-    while (r + 1 < k && choice[r] + 1 == rows_[r].members.size()) choice[r++] = 0;
-    if (r + 1 >= k) break;
-    ++choice[r];
   }
   // Matches into a loaded map held back until its alignment was confirmed
   // (by a sequence ending at this landmark) go out first, oldest first.
@@ -252,6 +273,7 @@ void SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {
   confirmed_matches_.clear();
   if (found) {
     ++counters_.matches;
+    if (found_over_skipped_row) ++counters_.matches_over_skipped_row;
     extend_closure_run(best_);
     sink.on_match(best_);
   }
@@ -280,7 +302,7 @@ bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from,
 }
 
 bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShape& shape,
-                           MatchEvent& best) {
+                           bool over_skipped_row, MatchEvent& best) {
   const unsigned k = config_.chain.k;
   const MatchConfig& mc = config_.match;
   ++counters_.queries;
@@ -322,6 +344,10 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
     }
     const Landmark& candidate_first = *database_.landmark(candidate[0]);
     if (mc.confirm_loaded_places && candidate_first.station < 0.0) {
+      // Until the loaded map's alignment is known, only sequences without a
+      // gap may propose it: a skipped row is one more way for a look-alike
+      // place to fit, and a rival hypothesis holds the true one back.
+      if (over_skipped_row && !confirmed_.valid) return true;
       // A place of a loaded map has no odometry prior: it must agree over
       // k + 1 rows (this sequence and the one a row back, both verified)...
       const bool continues = std::find(loaded_pairs_.begin(), loaded_pairs_.end(),

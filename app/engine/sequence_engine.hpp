@@ -70,6 +70,7 @@ struct EngineCounters {
   std::uint64_t chain_breaks = 0;
   std::uint64_t sequences_created = 0;
   std::uint64_t sequences_capped = 0;  // chains beyond the per-landmark cap
+  std::uint64_t sequences_over_skipped_row = 0;  // of sequences_created, stepping over a row
   std::uint64_t queries = 0;
   std::uint64_t candidates = 0;  // labels and distances agree
   std::uint64_t candidates_too_recent = 0;
@@ -83,6 +84,7 @@ struct EngineCounters {
   std::uint64_t candidate_limit_hits = 0;
   std::uint64_t matches = 0;
   std::uint64_t closures_extended = 0;  // alignment fitted on a run of matches
+  std::uint64_t matches_over_skipped_row = 0;  // of matches, found by a sequence stepping over a row
 };
 
 class SequenceEngine {
@@ -128,8 +130,10 @@ class SequenceEngine {
   // Stores the sequences ending at `id`; looks for their matches first when
   // `may_match`.
   void chain(LandmarkId id, bool may_match, MatchSink& sink);
-  // Best verified match of one new sequence; false when there is none.
-  bool match(std::span<const LandmarkId> query, const SequenceShape& shape, MatchEvent& best);
+  // Best verified match of one new sequence (`over_skipped_row`: it steps
+  // over one of the earlier rows); false when there is none.
+  bool match(std::span<const LandmarkId> query, const SequenceShape& shape, bool over_skipped_row,
+             MatchEvent& best);
   void set_relative_pose(MatchEvent& event) const;
   // When `event` continues the previous closure (its sequences overlap the
   // previous ones but for one row), refits its alignment on every pair of the
@@ -185,8 +189,8 @@ class SequenceEngine {
   // sequence a row further on can be seen to continue one.
   FixedVector<LandmarkPair, 32> loaded_pairs_;
 
-  // The last k rows, oldest first.
-  FixedVector<Row, kMaxSequenceLength> rows_;
+  // The last k rows (k + 1 when a row may be skipped), oldest first.
+  FixedVector<Row, kMaxSequenceLength + 1> rows_;
   MatchEvent best_;  // scratch, kept here to keep the stack small
 
   // How a loaded map's world frame relates to this session's (see

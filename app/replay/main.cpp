@@ -50,6 +50,7 @@ engine:
   --association-radius M observations of one marking lie this close; default 1.5
   --commit-after S       a marking unseen this long has left view; default 0.5
   --min-observations N   detections needed to make a landmark; default 2
+  --skip-rows N          rows a sequence may step over, 0 or 1; default 1
   --sequence-capacity N  database size in sequences; default 1048576
   --landmark-capacity N  database size in landmarks; default 262144
 
@@ -96,7 +97,7 @@ Options parse(int argc, char** argv) {
     static constexpr std::string_view kValueOptions[] = {
         "--markings", "--poses", "--out", "--jsonl", "--truth", "--fps", "--truth-radius", "--k",
         "--abs-tol", "--rel-tol", "--min-separation", "--min-separation-s", "--max-residual",
-        "--association-radius", "--commit-after", "--min-observations", "--sequence-capacity",
+        "--association-radius", "--commit-after", "--min-observations", "--skip-rows", "--sequence-capacity",
         "--landmark-capacity", "--sweep"};
     if (std::find(std::begin(kValueOptions), std::end(kValueOptions), arg) == std::end(kValueOptions))
       fail("unknown option " + std::string(arg) + " (see --help)");
@@ -118,6 +119,7 @@ Options parse(int argc, char** argv) {
     else if (arg == "--association-radius") o.engine.tracker.association_radius_m = parse_number(arg, v);
     else if (arg == "--commit-after") o.engine.tracker.commit_after_s = parse_number(arg, v);
     else if (arg == "--min-observations") o.engine.tracker.min_observations = parse_whole(arg, v);
+    else if (arg == "--skip-rows") o.engine.chain.max_skipped_rows = parse_whole(arg, v);
     else if (arg == "--sequence-capacity") o.engine.database.sequence_capacity = parse_whole(arg, v);
     else if (arg == "--landmark-capacity") o.engine.database.landmark_capacity = parse_whole(arg, v);
     else if (arg == "--sweep") {

@@ -63,7 +63,8 @@ void BM_TrackerFrame(benchmark::State& state) {
 BENCHMARK(BM_TrackerFrame);
 
 // A whole frame through the engine on a simulated drive (frames generated
-// beforehand, so only the engine is timed).
+// beforehand, so only the engine is timed); the argument is the number of
+// rows a sequence may skip (ChainConfig::max_skipped_rows).
 void BM_EngineFrame(benchmark::State& state) {
   const auto scenario = sim::make_scenario("ring", 1);
   sim::Drive drive(*scenario, sim::DriveConfig{}, 2);
@@ -76,6 +77,7 @@ void BM_EngineFrame(benchmark::State& state) {
     void on_match(const MatchEvent&) override { ++matches; }
   } sink;
   EngineConfig config;
+  config.chain.max_skipped_rows = static_cast<unsigned>(state.range(0));
   config.database.sequence_capacity = 1 << 16;
   config.database.landmark_capacity = 1 << 14;
   auto engine = std::make_unique<SequenceEngine>(config);
@@ -95,7 +97,7 @@ void BM_EngineFrame(benchmark::State& state) {
   }
   state.counters["matches"] = static_cast<double>(sink.matches);
 }
-BENCHMARK(BM_EngineFrame);
+BENCHMARK(BM_EngineFrame)->Arg(0)->Arg(1);
 
 }  // namespace
 

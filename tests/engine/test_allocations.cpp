@@ -27,7 +27,7 @@ TEST_CASE("no heap allocation after start-up over a 60 km drive", "[engine][memo
   EngineConfig config;
   // Small enough that both rings wrap many times during the drive.
   config.database.landmark_capacity = 512;
-  config.database.sequence_capacity = 1024;
+  config.database.sequence_capacity = 4096;  // about k sequences per landmark
   config.match.min_separation_s = 30;
   auto engine = std::make_unique<SequenceEngine>(config);
   CountingSink sink;

@@ -126,6 +126,61 @@ TEST_CASE("a missed marking on one lane leaves the chains through the other", "[
   }
 }
 
+// One lane, driven twice: the first pass misses the marking of row 5, the
+// second that of row 9. Without a skipped row every sequence through either
+// marking is lost; with one, only the rows whose own marking is missing.
+TEST_CASE("a marking missed on one visit breaks no sequence when a row may be skipped", "[engine]") {
+  struct Mark { double x; Label label; };
+  std::vector<Mark> world;
+  // Spacings and labels that no stretch of the road repeats, skipped rows included.
+  const double spacing[14] = {0, 17, 23, 19, 29, 16, 25, 21, 31, 18, 27, 22, 33, 20};
+  double x = 30.0;
+  for (int row = 0; row < 14; ++row) {
+    x += spacing[row];
+    world.push_back({x, static_cast<Label>((row * 5) % 11)});
+  }
+  const auto matched_rows = [&](unsigned max_skipped_rows) {
+    EngineConfig config;
+    config.chain.k = 3;
+    config.chain.max_skipped_rows = max_skipped_rows;
+    config.match.min_separation_s = 0;
+    SequenceEngine engine(config);
+    Collector sink;
+    FrameIndex frame = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+      const int missed_row = pass == 0 ? 5 : 9;
+      for (double car = 0; car < 400.0; car += 1.0) {
+        FrameInput in{frame, frame / 10.0, true, {car, 0.0, 0.0}};
+        std::vector<Observation> seen;
+        for (int row = 0; row < 14; ++row) {
+          const double ahead = world[row].x - car;
+          if (ahead >= 4 && ahead <= 20 && row != missed_row)
+            seen.push_back({world[row].label, static_cast<float>(world[row].x), 0.0f});
+        }
+        engine.process_frame(in, seen, sink);
+        ++frame;
+      }
+      if (pass == 0) engine.break_chains(sink);  // the car is driven back to the start
+    }
+    engine.flush(sink);
+    std::vector<int> rows;
+    for (const MatchEvent& e : sink.events) {
+      CHECK(e.query[e.k - 1].x == e.match[e.k - 1].x);
+      CHECK(e.residual_m < 1e-3);
+      for (int row = 0; row < 14; ++row)
+        if (world[row].x == e.query[e.k - 1].x) rows.push_back(row);
+    }
+    // Each pass: 13 landmarks, of which the 10 with k rows before them make
+    // k - 1 = 2 sequences over a skipped row each.
+    CHECK(engine.counters().sequences_over_skipped_row == (max_skipped_rows == 0 ? 0u : 2u * 10u * 2u));
+    return rows;
+  };
+  // Rows 0 and 1 start the chains; 5 is not in the map, 9 not in the query.
+  CHECK(matched_rows(1) == std::vector<int>{2, 3, 4, 6, 7, 8, 10, 11, 12, 13});
+  // Without: also every row whose sequence spans row 5 or row 9.
+  CHECK(matched_rows(0) == std::vector<int>{2, 3, 4, 8, 12, 13});
+}
+
 TEST_CASE("the engine rejects bad configurations", "[engine]") {
   EngineConfig config;
   CHECK(validate(config) == nullptr);
@@ -137,6 +192,11 @@ TEST_CASE("the engine rejects bad configurations", "[engine]") {
   config = {};
   config.match.index_bin_tolerances = 1.0;
   CHECK(validate(config) != nullptr);
+  config = {};
+  config.chain.max_skipped_rows = 2;
+  CHECK(validate(config) != nullptr);
+  config.chain.max_skipped_rows = 0;
+  CHECK(validate(config) == nullptr);
 }
 
 // A straight road with one marking per row, driven twice; on the second pass
