@@ -2,7 +2,8 @@
 //
 //   observations -> LandmarkTracker -> (release in along-track order)
 //     -> rows of side-by-side landmarks -> every chain of k rows ending at
-//        the new landmark -> query the database -> verify by rigid alignment
+//        the new landmark (and of k of the last k + 1, one row stepped over)
+//     -> query the database -> verify by rigid alignment
 //        -> MatchEvent; then the new sequences are stored.
 //
 // All memory is allocated in the constructor; process_frame() does not touch
