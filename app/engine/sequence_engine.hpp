@@ -85,7 +85,9 @@ struct EngineCounters {
   std::uint64_t candidate_limit_hits = 0;
   std::uint64_t matches = 0;
   std::uint64_t closures_extended = 0;  // alignment fitted on a run of matches
-  std::uint64_t matches_over_skipped_row = 0;  // of matches, found by a sequence stepping over a row
+  // Of matches, found by a query stepping over a row (a plain query that meets
+  // a stored sequence over a skipped row is not counted here).
+  std::uint64_t matches_over_skipped_row = 0;
 };
 
 class SequenceEngine {
