@@ -75,12 +75,24 @@ bool read_outline(const cv::FileNode& node, ImageOutline& outline, std::string& 
   return true;
 }
 
+// The region the view covers: `region` and the guard band beyond its far
+// end and sides, whole pixels wide, so that the pixels over `region` sample
+// the same ground points with or without it.
+BirdsEyeRegion with_guard_band(BirdsEyeRegion region, float guard_m) {
+  const float along = std::ceil(guard_m / region.x_step_m - 1e-3f) * region.x_step_m;
+  const float across = std::ceil(guard_m / region.y_step_m - 1e-3f) * region.y_step_m;
+  region.x_far_m += along;
+  region.y_left_m += across;
+  region.y_right_m -= across;
+  return region;
+}
+
 }  // namespace
 
 MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig& config)
     : camera_(camera),
       config_(config),
-      birdseye_(camera, config.region, config.hidden_below),
+      birdseye_(camera, with_guard_band(config.region, config.guard_m), config.hidden_below),
       model_(config.model != nullptr ? config.model : &builtin_marking_model()) {
   const int rows = birdseye_.rows(), cols = birdseye_.cols();
   const auto& region = config.region;
@@ -307,6 +319,12 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
       ++counters_.clipped;
       continue;
     }
+    Detection located{};
+    locate(candidate, located);
+    if (beyond_region(located)) {
+      ++counters_.beyond_region;
+      continue;
+    }
     if (candidate.score < config_.min_score) {
       ++counters_.low_score;
       continue;
@@ -316,10 +334,10 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
       continue;
     }
     Detection& d = detections_[detection_count_++];
+    d = located;
     d.label = static_cast<Label>(candidate.predicted);
     d.score = candidate.score;
     d.partial = partial;
-    locate(candidate, d);
     ++counters_.detections;
     if (partial) ++counters_.partial;
   }
@@ -678,6 +696,12 @@ void MarkingDetector::locate(const Candidate& candidate, Detection& out) const {
   out.ground_y = 0.5f * (left + right);
 }
 
+bool MarkingDetector::beyond_region(const Detection& located) const {
+  const auto& region = config_.region;
+  return located.ground_x > region.x_far_m || located.ground_y > region.y_left_m ||
+         located.ground_y < region.y_right_m;
+}
+
 bool load_detector_config(const std::string& path, DetectorConfig& config, std::string& error) {
   try {
     cv::FileStorage fs(path, cv::FileStorage::READ);
@@ -698,6 +722,7 @@ bool load_detector_config(const std::string& path, DetectorConfig& config, std::
         {"detector_y_right_m", &c.region.y_right_m, -50.0f, 50.0f},
         {"detector_x_step_m", &c.region.x_step_m, 0.005f, 1.0f},
         {"detector_y_step_m", &c.region.y_step_m, 0.005f, 1.0f},
+        {"detector_guard_m", &c.guard_m, 0.0f, 5.0f},
         {"detector_local_window_m", &c.local_window_m, 0.1f, 20.0f},
         {"detector_min_score", &c.min_score, 0.0f, 1.0f},
         {"detector_horizon_gain", &c.horizon_gain, 0.001f, 1.0f},

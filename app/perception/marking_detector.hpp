@@ -48,6 +48,13 @@ inline constexpr std::size_t kMaxDetections = 32;
 
 struct DetectorConfig {
   BirdsEyeRegion region;  // road area searched and its resolution
+  // The view reads this much further than `region` beyond its far end and
+  // its sides (rounded up to whole pixels): paint smeared by blur reaches a
+  // pixel or two past a marking's outline, so one that ends just inside the
+  // region would otherwise touch the view's edge and be taken for cut.
+  // Candidates centred in this band are classified but not reported
+  // (counted in beyond_region).
+  float guard_m = 0.3f;
   // Image pixels at or below this outline are the car's bonnet, not road.
   ImageOutline hidden_below;
   // Bright paint: brighter than the mean of a window this size around it by
@@ -136,6 +143,7 @@ struct DetectorCounters {
   std::uint64_t rejected = 0;            // classifier said: not a marking
   std::uint64_t low_score = 0;           // marking class below min_score
   std::uint64_t pieces = 0;              // inside a larger marking (is_piece_of_larger)
+  std::uint64_t beyond_region = 0;       // whole, but centred in the guard band (guard_m)
   std::uint64_t detections = 0;
   std::uint64_t detections_dropped = 0;  // over kMaxDetections in one frame
   std::uint64_t horizon_measured = 0;    // frames whose lane lines crossed near the horizon
@@ -194,6 +202,9 @@ class MarkingDetector {
   std::span<const Candidate> candidates() const { return {candidates_.data(), candidate_count_}; }
   // The quad (image pixels) and ground centre of a candidate's box.
   void locate(const Candidate& candidate, Detection& out) const;
+  // True when a located candidate's centre lies in the guard band, beyond
+  // config().region: it is not reported.
+  bool beyond_region(const Detection& located) const;
 
  private:
   struct Part {

@@ -37,6 +37,24 @@ const Candidate* nearest(const MarkingDetector& detector, double x, double y, De
   }
   return best;
 }
+// A model that calls every candidate `label`, sure of it: what a test using
+// it checks is which candidates are reported.
+struct SureModel {
+  explicit SureModel(int label) {
+    bias[label] = 20.0f;
+    model.members = 1;
+    model.nets[0] = {kFeatureCount, 1, kClassifierOutputs, zeros.data(), ones.data(),
+                     zeros.data(), &zero, no_weights.data(), bias.data()};
+  }
+  SureModel(const SureModel&) = delete;
+  SureModel& operator=(const SureModel&) = delete;
+
+  std::vector<float> zeros = std::vector<float>(kFeatureCount, 0.0f);
+  std::vector<float> ones = std::vector<float>(kFeatureCount, 1.0f);
+  std::array<float, kClassifierOutputs> bias{}, no_weights{};
+  float zero = 0.0f;
+  MlpModel model;
+};
 }  // namespace
 
 TEST_CASE("bird's-eye view: pixels map back to the ground points they show") {
@@ -224,21 +242,11 @@ TEST_CASE("detector: a piece inside a larger marking is no detection of its own"
 
 TEST_CASE("detector: a still reports a marking cut by the near edge, marked partial; a stream does not") {
   const CameraModel camera = default_camera_model();
-  // A model that calls every candidate a forward arrow, sure of it: what is
-  // tested is which candidates are reported.
-  const std::vector<float> zeros(kFeatureCount, 0.0f), ones(kFeatureCount, 1.0f);
-  std::array<float, kClassifierOutputs> bias{};
   const int forward = static_cast<int>(*marking_class_from_name("forward"));
-  bias[forward] = 20.0f;
-  const std::array<float, kClassifierOutputs> no_weights{};
-  const float zero = 0.0f;
-  MlpModel model;
-  model.members = 1;
-  model.nets[0] = {kFeatureCount, 1, kClassifierOutputs, zeros.data(), ones.data(),
-                   zeros.data(), &zero, no_weights.data(), bias.data()};
-  REQUIRE(model_is_usable(model));
+  const SureModel sure(forward);
+  REQUIRE(model_is_usable(sure.model));
   DetectorConfig config;
-  config.model = &model;
+  config.model = &sure.model;
   MarkingDetector detector(camera, config);
   const double near = config.region.x_near_m, far = config.region.x_far_m;
   const double left = config.region.y_left_m;
@@ -281,6 +289,47 @@ TEST_CASE("detector: a still reports a marking cut by the near edge, marked part
   config.report_partial_in_stills = false;
   MarkingDetector whole_only(camera, config);
   CHECK(reported(whole_only.detect_still(frame), blocks[0]) == nullptr);
+}
+
+TEST_CASE("detector: the guard band shows a marking ending at the region's edge whole") {
+  const CameraModel camera = default_camera_model();
+  const SureModel sure(static_cast<int>(*marking_class_from_name("forward")));
+  DetectorConfig config;
+  config.model = &sure.model;
+  const double far = config.region.x_far_m, left = config.region.y_left_m;
+  const std::vector<GroundRect> blocks = {
+      {far - 2.42, far - 0.02, -0.9, -0.3},    // ends 2 cm inside the far end
+      {9.0, 11.4, left - 0.62, left - 0.02},   // ends 2 cm inside the left side
+      {13.0, 14.0, left + 0.06, left + 0.2},   // wholly beyond the left side
+  };
+  const cv::Mat frame = render_road(camera, blocks);
+  const auto reported = [](std::span<const Detection> detections, const GroundRect& block) {
+    for (const Detection& d : detections)
+      if (d.ground_x >= block.x0 && d.ground_x <= block.x1 && d.ground_y >= block.y0 &&
+          d.ground_y <= block.y1)
+        return true;
+    return false;
+  };
+
+  // Without the band, the paint's last pixels lie on the view's edge: cut.
+  config.guard_m = 0.0f;
+  MarkingDetector unguarded(camera, config);
+  const auto without = unguarded.detect(frame);
+  CHECK_FALSE(reported(without, blocks[0]));
+  CHECK_FALSE(reported(without, blocks[1]));
+  CHECK(unguarded.counters().clipped == 2);
+
+  config.guard_m = 0.3f;
+  MarkingDetector guarded(camera, config);
+  const auto with = guarded.detect(frame);
+  CHECK(reported(with, blocks[0]));
+  CHECK(reported(with, blocks[1]));
+  CHECK_FALSE(reported(with, blocks[2]));
+  CHECK(guarded.counters().clipped == 0);
+  CHECK(guarded.counters().beyond_region == 1);
+  // The band is whole pixels wide: the pixels over the region are the same.
+  CHECK(guarded.birdseye().rows() == unguarded.birdseye().rows() + 6);
+  CHECK(guarded.birdseye().cols() == unguarded.birdseye().cols() + 2 * 8);
 }
 
 TEST_CASE("detector: an empty road gives nothing; wrong frames are counted, not processed") {
@@ -495,5 +544,9 @@ TEST_CASE("detector config: bad values are reported with the file") {
   CHECK(config.hidden_below_follows_horizon);
   CHECK(config.horizon_max_shift_px == 25);
   CHECK(config.horizon_gain == Catch::Approx(0.1));
+  CHECK_FALSE(load("detector_guard_m", -0.1));
+  CHECK(error.find("detector_guard_m") != std::string::npos);
+  REQUIRE(load("detector_guard_m", 0.5));
+  CHECK(config.guard_m == Catch::Approx(0.5));
   CHECK_FALSE(load_detector_config("/nonexistent/camera.yaml", config, error));
 }

@@ -95,6 +95,7 @@ struct Sample {
   bool augmented;               // a shifted, rotated or mirrored copy: training only
   bool clipped;                 // cut by the edge of the view: trained on, not reported...
   bool partial;                 // ... unless only by its near edge (DetectorConfig)
+  bool beyond_region;           // centred in the view's guard band: trained on, not reported
   std::array<float, 2> centre;  // quad centre in the image, pixels
   std::array<int, 4> box;       // bird's-eye box: col0, row0, col1, row1
 };
@@ -255,6 +256,7 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       s.augmented = false;
       s.clipped = c.clipped;
       s.partial = c.clipped_near_only && config.report_partial_in_stills;
+      s.beyond_region = detector.beyond_region(where);
       s.box = {c.col0, c.row0, c.col1, c.row1};
       for (const auto& a : image.annotations) {
         if (!inside(a.quad, s.centre[0], s.centre[1])) continue;
@@ -497,7 +499,8 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
   }
   for (std::size_t i = 0; i < detections.size(); ++i) {
     if (predicted[i] == kRejectClass || scores[i] < min_score ||
-        (detections[i]->clipped && !detections[i]->partial) || piece[i])
+        (detections[i]->clipped && !detections[i]->partial) || detections[i]->beyond_region ||
+        piece[i])
       continue;
     const std::string label(marking_class_name(static_cast<markloop::Label>(predicted[i])));
     // The real dataset does not annotate stop lines and crosswalks: such
