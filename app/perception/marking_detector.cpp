@@ -319,9 +319,7 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
       ++counters_.clipped;
       continue;
     }
-    Detection located{};
-    locate(candidate, located);
-    if (beyond_region(located)) {
+    if (beyond_region(candidate)) {
       ++counters_.beyond_region;
       continue;
     }
@@ -334,10 +332,10 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
       continue;
     }
     Detection& d = detections_[detection_count_++];
-    d = located;
     d.label = static_cast<Label>(candidate.predicted);
     d.score = candidate.score;
     d.partial = partial;
+    locate(candidate, d);
     ++counters_.detections;
     if (partial) ++counters_.partial;
   }
@@ -678,11 +676,15 @@ void MarkingDetector::classify(Candidate& candidate) {
   candidate.score = probabilities[candidate.predicted];
 }
 
+MarkingDetector::GroundBox MarkingDetector::ground_box(const Candidate& candidate) const {
+  return {birdseye_.ground_x(static_cast<float>(candidate.row0) - 0.5f),
+          birdseye_.ground_x(static_cast<float>(candidate.row1) + 0.5f),
+          birdseye_.ground_y(static_cast<float>(candidate.col0) - 0.5f),
+          birdseye_.ground_y(static_cast<float>(candidate.col1) + 0.5f)};
+}
+
 void MarkingDetector::locate(const Candidate& candidate, Detection& out) const {
-  const float far = birdseye_.ground_x(static_cast<float>(candidate.row0) - 0.5f);
-  const float near = birdseye_.ground_x(static_cast<float>(candidate.row1) + 0.5f);
-  const float left = birdseye_.ground_y(static_cast<float>(candidate.col0) - 0.5f);
-  const float right = birdseye_.ground_y(static_cast<float>(candidate.col1) + 0.5f);
+  const auto [far, near, left, right] = ground_box(candidate);
   // The dataset's corner order: near left, near right, far right, far left.
   const std::array<std::array<float, 2>, 4> corners = {
       {{near, left}, {near, right}, {far, right}, {far, left}}};
@@ -696,10 +698,12 @@ void MarkingDetector::locate(const Candidate& candidate, Detection& out) const {
   out.ground_y = 0.5f * (left + right);
 }
 
-bool MarkingDetector::beyond_region(const Detection& located) const {
+bool MarkingDetector::beyond_region(const Candidate& candidate) const {
+  // The centre as locate() gives it.
+  const auto [far, near, left, right] = ground_box(candidate);
+  const float x = 0.5f * (near + far), y = 0.5f * (left + right);
   const auto& region = config_.region;
-  return located.ground_x > region.x_far_m || located.ground_y > region.y_left_m ||
-         located.ground_y < region.y_right_m;
+  return x > region.x_far_m || y > region.y_left_m || y < region.y_right_m;
 }
 
 bool load_detector_config(const std::string& path, DetectorConfig& config, std::string& error) {

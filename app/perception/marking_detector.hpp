@@ -202,9 +202,9 @@ class MarkingDetector {
   std::span<const Candidate> candidates() const { return {candidates_.data(), candidate_count_}; }
   // The quad (image pixels) and ground centre of a candidate's box.
   void locate(const Candidate& candidate, Detection& out) const;
-  // True when a located candidate's centre lies in the guard band, beyond
+  // True when the candidate's centre lies in the guard band, beyond
   // config().region: it is not reported.
-  bool beyond_region(const Detection& located) const;
+  bool beyond_region(const Candidate& candidate) const;
 
  private:
   struct Part {
@@ -222,6 +222,11 @@ class MarkingDetector {
   std::size_t label_parts();
   void group_parts(std::size_t part_count);
   void classify(Candidate& candidate);
+  // A candidate's box on the ground (vehicle frame, metres).
+  struct GroundBox {
+    float far, near, left, right;
+  };
+  GroundBox ground_box(const Candidate& candidate) const;
   // kNearEdge | kOtherEdge bits of the edge pixels the candidate's paint touches.
   std::uint8_t touched_edges(const Candidate& candidate) const;
   bool usable(const cv::Mat& grey) const;

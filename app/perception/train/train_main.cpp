@@ -256,7 +256,7 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       s.augmented = false;
       s.clipped = c.clipped;
       s.partial = c.clipped_near_only && config.report_partial_in_stills;
-      s.beyond_region = detector.beyond_region(where);
+      s.beyond_region = detector.beyond_region(c);
       s.box = {c.col0, c.row0, c.col1, c.row1};
       for (const auto& a : image.annotations) {
         if (!inside(a.quad, s.centre[0], s.centre[1])) continue;
