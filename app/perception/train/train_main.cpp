@@ -21,6 +21,7 @@
 #include <random>
 #include <span>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <Eigen/Core>
@@ -453,14 +454,19 @@ Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& option
 }
 
 // The ensemble: members trained alike from different random starts (member
-// 0 from `seed` itself).
+// 0 from `seed` itself). Each member has its own seed and only reads the
+// data, so they train in parallel threads: the same networks as one after
+// another, in less time.
 std::vector<Mlp> train_members(const std::vector<const Sample*>& data, const TrainOptions& options) {
-  std::vector<Mlp> members;
-  for (int i = 0; i < options.members; ++i) {
-    TrainOptions member = options;
-    member.seed = options.seed + 100 * static_cast<unsigned>(i);
-    members.push_back(train_mlp(data, member));
-  }
+  std::vector<Mlp> members(static_cast<std::size_t>(options.members));
+  std::vector<std::thread> threads;
+  for (int i = 0; i < options.members; ++i)
+    threads.emplace_back([&, i] {
+      TrainOptions member = options;
+      member.seed = options.seed + 100 * static_cast<unsigned>(i);
+      members[static_cast<std::size_t>(i)] = train_mlp(data, member);
+    });
+  for (std::thread& thread : threads) thread.join();
   return members;
 }
 
