@@ -336,7 +336,17 @@ int main(int argc, char** argv) {
   std::printf("  %-34s %zu\n", "detections", loops.outcomes.size());
   std::printf("  %-34s %zu / %zu", "correct / wrong", e.correct, e.wrong);
   if (e.unjudged > 0) std::printf(" (%zu beyond frames.csv)", e.unjudged);
-  std::printf("\n  %-34s %s\n", "precision", percent_text(e.correct, e.correct + e.wrong).c_str());
+  std::printf("\n");
+  for (const LoopOutcome& l : loops.outcomes) {
+    if (l.verdict != Verdict::Wrong) continue;
+    std::printf("    wrong: frame %u against frame %u, %.1f m apart", l.pair.query, l.pair.match,
+                l.true_distance_m);
+    if (l.pose_error)
+      std::printf(" (relative pose error %.3f m, %.2f deg)", l.pose_error->translation_m,
+                  l.pose_error->rotation_deg);
+    std::printf("\n");
+  }
+  std::printf("  %-34s %s\n", "precision", percent_text(e.correct, e.correct + e.wrong).c_str());
   std::printf("  %-34s %zu of %zu (%s)\n", "revisited 100 m stretches detected",
               e.revisit_segments_detected, e.revisit_segments,
               percent_text(e.revisit_segments_detected, e.revisit_segments).c_str());

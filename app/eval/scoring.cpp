@@ -63,8 +63,9 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
       const Pose2& b = judge.truth()[pair.match];
       outcome.true_distance_m = std::hypot(a.x - b.x, a.y - b.y);
       outcome.verdict = judge.correct(pair) ? Verdict::Correct : Verdict::Wrong;
-      if (outcome.verdict == Verdict::Correct && estimate)
-        outcome.pose_error = judge.pose_error(pair, *estimate);
+      // For a wrong one too: a small error there says the markings were
+      // the same and only the two frames lie apart (the routes parted).
+      if (estimate) outcome.pose_error = judge.pose_error(pair, *estimate);
     }
     if (pair.query < frame_times.size()) {
       since_query_frame.push_back(stamp_s - frame_times[pair.query]);

@@ -21,7 +21,7 @@ struct LoopOutcome {
   replay::FramePair pair;
   Verdict verdict = Verdict::Unjudged;
   double true_distance_m = 0.0;             // between the two frames' true positions
-  std::optional<replay::PoseError> pose_error;  // correct detections with PoseValid
+  std::optional<replay::PoseError> pose_error;  // detections with PoseValid, correct or wrong
   double latency_s = 0.0;                   // CAN stamp - QueryTime
 };
 
