@@ -209,6 +209,8 @@ const std::vector<Key>& keys() {
                [](EcuConfig& c) -> double& { return c.engine.match.min_separation_s; }),
       real_key("engine.max_residual_m", 0.001, 100.0,
                [](EcuConfig& c) -> double& { return c.engine.match.max_residual_m; }),
+      real_key("engine.max_frame_distance_m", 0.0, 1.0e6,
+               [](EcuConfig& c) -> double& { return c.engine.match.max_frame_distance_m; }),
       real_key("engine.max_drift_rel", 0.0, 1.0,
                [](EcuConfig& c) -> double& { return c.engine.match.max_drift_rel; }),
       real_key("engine.max_drift_m", 0.0, 1.0e6,

@@ -68,6 +68,7 @@ inline EngineConfig ecu_engine_defaults() {
   c.tracker.min_observations = 3;
   c.match.max_residual_m = 0.3;
   c.match.max_drift_rel = 0.02;
+  c.match.max_frame_distance_m = 5.0;
   c.match.confirm_loaded_places = true;
   return c;
 }

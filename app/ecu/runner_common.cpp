@@ -124,12 +124,14 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
     const EngineCounters& e = ecu.engine().counters();
     std::fprintf(stderr,
                  "markloop: engine %llu sequences, %llu candidates, %llu too recent, %llu residual, "
-                 "%llu drift, %llu loaded-map single sequences, %llu loaded-map hypotheses, "
-                 "%llu loaded-map disagreeing, %llu matches (%llu with the pose refined over a run)\n",
+                 "%llu drift, %llu frames apart, %llu loaded-map single sequences, "
+                 "%llu loaded-map hypotheses, %llu loaded-map disagreeing, "
+                 "%llu matches (%llu with the pose refined over a run)\n",
                  (unsigned long long)e.sequences_created, (unsigned long long)e.candidates,
                  (unsigned long long)e.candidates_too_recent,
                  (unsigned long long)e.candidates_rejected_residual,
                  (unsigned long long)e.candidates_rejected_drift,
+                 (unsigned long long)e.candidates_rejected_frames_apart,
                  (unsigned long long)e.loaded_single_sequences,
                  (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
                  (unsigned long long)e.matches, (unsigned long long)e.closures_extended);
@@ -178,6 +180,7 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
       {"candidates_too_recent", e.candidates_too_recent},
       {"candidates_rejected_residual", e.candidates_rejected_residual},
       {"candidates_rejected_drift", e.candidates_rejected_drift},
+      {"candidates_rejected_frames_apart", e.candidates_rejected_frames_apart},
       {"loaded_single_sequences", e.loaded_single_sequences},
       {"loaded_hypotheses", e.loaded_hypotheses},
       {"loaded_hypotheses_sent", e.loaded_hypotheses_sent},

@@ -44,6 +44,8 @@ const char* validate(const EngineConfig& c) {
       !finite_non_negative(c.match.max_drift_yaw_abs_deg) ||
       !finite_non_negative(c.match.max_drift_yaw_rel_deg_per_m))
     return "drift limits must be non-negative";
+  if (!finite_non_negative(c.match.max_frame_distance_m))
+    return "frame distance limit must be non-negative";
   if (!finite_non_negative(c.match.confirm_within_m) ||
       !finite_non_negative(c.match.confirm_min_gap_m))
     return "confirmation distances must be non-negative";
@@ -301,6 +303,15 @@ bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from,
          turned <= mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven;
 }
 
+bool SequenceEngine::frames_too_far_apart(const Pose2& alignment, const Landmark& query_last,
+                                          const Landmark& match_last) const {
+  const double limit = config_.match.max_frame_distance_m;
+  if (!(limit > 0.0) || !query_last.has_car_pose || !match_last.has_car_pose) return false;
+  const Pose2 match_car{match_last.car_x, match_last.car_y, match_last.car_yaw};
+  const Pose2 match_car_now = compose(alignment, match_car);
+  return std::hypot(query_last.car_x - match_car_now.x, query_last.car_y - match_car_now.y) > limit;
+}
+
 bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShape& shape,
                            bool over_skipped_row, MatchEvent& best) {
   const unsigned k = config_.chain.k;
@@ -340,6 +351,11 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
     const RigidFit fit = fit_rigid_2d({candidate_points.data(), k}, {query_points.data(), k});
     if (fit.rms_residual > mc.max_residual_m) {
       ++counters_.candidates_rejected_residual;
+      return true;
+    }
+    const Landmark& match_last = *database_.landmark(candidate[k - 1]);
+    if (frames_too_far_apart(fit.transform, best.query[k - 1], match_last)) {
+      ++counters_.candidates_rejected_frames_apart;
       return true;
     }
     const Landmark& candidate_first = *database_.landmark(candidate[0]);

@@ -77,6 +77,8 @@ struct EngineCounters {
   std::uint64_t candidates_too_recent = 0;
   std::uint64_t candidates_rejected_residual = 0;
   std::uint64_t candidates_rejected_drift = 0;  // beyond the odometry prior
+  // The same markings, but the two frames apart (max_frame_distance_m).
+  std::uint64_t candidates_rejected_frames_apart = 0;
   std::uint64_t loaded_single_sequences = 0;    // into a loaded map, not yet over k + 1 rows
   std::uint64_t loaded_hypotheses = 0;          // first matches into a loaded map, held back
   std::uint64_t loaded_hypotheses_sent = 0;     // ... and sent once a later match confirmed them
@@ -215,6 +217,10 @@ class SequenceEngine {
   // within the drift limits for `driven` metres.
   bool agrees(const Pose2& transform, const Eigen::Vector2d& from, const Eigen::Vector2d& to,
               double yaw, double driven) const;
+  // True when `alignment` puts the two visits' frames of the last marking
+  // further apart than max_frame_distance_m.
+  bool frames_too_far_apart(const Pose2& alignment, const Landmark& query_last,
+                            const Landmark& match_last) const;
 };
 
 }  // namespace markloop

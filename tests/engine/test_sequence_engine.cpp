@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "engine/sequence_engine.hpp"
@@ -197,6 +198,9 @@ TEST_CASE("the engine rejects bad configurations", "[engine]") {
   CHECK(validate(config) != nullptr);
   config.chain.max_skipped_rows = 0;
   CHECK(validate(config) == nullptr);
+  config = {};
+  config.match.max_frame_distance_m = -1.0;
+  CHECK(validate(config) != nullptr);
 }
 
 // A straight road with one marking per row, driven twice; on the second pass
@@ -264,4 +268,48 @@ TEST_CASE("a landmark is represented by the frame in which the car passed it, an
     CHECK(std::abs(e.relative_pose.yaw) < tolerance_deg * 3.14159265358979323846 / 180.0);
   }
   CHECK(engine.counters().closures_extended == sink.events.size() - 1);
+}
+
+// The same markings passed twice, the second time on a parallel line
+// `lateral_m` to the side (where routes part at a junction, the car turns
+// off before the last marking): the markings agree, and the loop's two
+// frames lie apart by that much.
+TEST_CASE("a loop whose two frames lie further apart than max_frame_distance_m is not reported",
+          "[engine]") {
+  const auto loops = [](double lateral_m, double max_frame_distance_m) {
+    EngineConfig config;
+    config.chain.k = 3;
+    config.match.min_separation_s = 0;
+    config.match.max_frame_distance_m = max_frame_distance_m;
+    SequenceEngine engine(config);
+    Collector sink;
+    FrameIndex frame = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+      const double car_y = pass == 0 ? 0.0 : lateral_m;
+      for (double car = 0; car < 260.0; car += 0.5, ++frame) {
+        std::vector<Observation> seen;
+        for (int row = 0; row < 10; ++row) {
+          const double x = 30.0 + row * 20.0 + (row % 3) * 4.0;
+          if (x - car >= 4 && x - car <= 20)
+            seen.push_back({static_cast<Label>(row % 4), static_cast<float>(x), 0.0f});
+        }
+        engine.process_frame({frame, frame / 20.0, true, {car, car_y, 0.0}}, seen, sink);
+      }
+      if (pass == 0) engine.break_chains(sink);
+    }
+    engine.flush(sink);
+    return std::pair{sink.events.size(), engine.counters().candidates_rejected_frames_apart};
+  };
+  // 2 m to the side: the same place, within 5 m.
+  const auto [near_loops, near_rejected] = loops(2.0, 5.0);
+  CHECK(near_loops >= 6);
+  CHECK(near_rejected == 0);
+  // 8 m to the side: every match is held back, and counted.
+  const auto [far_loops, far_rejected] = loops(8.0, 5.0);
+  CHECK(far_loops == 0);
+  CHECK(far_rejected >= 6);
+  // Without the limit the same drive closes its loops.
+  const auto [unlimited_loops, unlimited_rejected] = loops(8.0, 0.0);
+  CHECK(unlimited_loops == near_loops);
+  CHECK(unlimited_rejected == 0);
 }
