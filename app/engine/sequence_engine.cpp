@@ -2,12 +2,27 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <Eigen/Core>
 
 #include "engine/rigid_alignment.hpp"
 
 namespace markloop {
+namespace {
+
+// The car at the query seen from the car at the match, both where they came
+// closest to the sequence's last marking, once `alignment` maps the match's
+// world frame onto the query's; none when either car's pose is unknown.
+std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& query_last,
+                                       const Landmark& match_last) {
+  if (!query_last.has_car_pose || !match_last.has_car_pose) return std::nullopt;
+  const Pose2 query_car{query_last.car_x, query_last.car_y, query_last.car_yaw};
+  const Pose2 match_car{match_last.car_x, match_last.car_y, match_last.car_yaw};
+  return compose(inverse(compose(alignment, match_car)), query_car);
+}
+
+}  // namespace
 
 const char* validate(const EngineConfig& c) {
   const auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
@@ -303,15 +318,6 @@ bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from,
          turned <= mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven;
 }
 
-bool SequenceEngine::frames_too_far_apart(const Pose2& alignment, const Landmark& query_last,
-                                          const Landmark& match_last) const {
-  const double limit = config_.match.max_frame_distance_m;
-  if (!(limit > 0.0) || !query_last.has_car_pose || !match_last.has_car_pose) return false;
-  const Pose2 match_car{match_last.car_x, match_last.car_y, match_last.car_yaw};
-  const Pose2 match_car_now = compose(alignment, match_car);
-  return std::hypot(query_last.car_x - match_car_now.x, query_last.car_y - match_car_now.y) > limit;
-}
-
 bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShape& shape,
                            bool over_skipped_row, MatchEvent& best) {
   const unsigned k = config_.chain.k;
@@ -353,8 +359,11 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
       ++counters_.candidates_rejected_residual;
       return true;
     }
-    const Landmark& match_last = *database_.landmark(candidate[k - 1]);
-    if (frames_too_far_apart(fit.transform, best.query[k - 1], match_last)) {
+    // The loop's two frames, as far apart as its relative pose says.
+    const std::optional<Pose2> relative =
+        relative_car_pose(fit.transform, best.query[k - 1], *database_.landmark(candidate[k - 1]));
+    if (mc.max_frame_distance_m > 0.0 && relative &&
+        std::hypot(relative->x, relative->y) > mc.max_frame_distance_m) {
       ++counters_.candidates_rejected_frames_apart;
       return true;
     }
@@ -488,14 +497,10 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
 }
 
 void SequenceEngine::set_relative_pose(MatchEvent& event) const {
-  const Landmark& q = event.query[event.k - 1];
-  const Landmark& m = event.match[event.k - 1];
-  event.has_relative_pose = q.has_car_pose && m.has_car_pose;
-  if (event.has_relative_pose) {
-    const Pose2 query_car{q.car_x, q.car_y, q.car_yaw};
-    const Pose2 match_car{m.car_x, m.car_y, m.car_yaw};
-    event.relative_pose = compose(inverse(compose(event.alignment, match_car)), query_car);
-  }
+  const std::optional<Pose2> relative =
+      relative_car_pose(event.alignment, event.query[event.k - 1], event.match[event.k - 1]);
+  event.has_relative_pose = relative.has_value();
+  if (relative) event.relative_pose = *relative;
 }
 
 void SequenceEngine::extend_closure_run(MatchEvent& event) {

@@ -217,10 +217,6 @@ class SequenceEngine {
   // within the drift limits for `driven` metres.
   bool agrees(const Pose2& transform, const Eigen::Vector2d& from, const Eigen::Vector2d& to,
               double yaw, double driven) const;
-  // True when `alignment` puts the two visits' frames of the last marking
-  // further apart than max_frame_distance_m.
-  bool frames_too_far_apart(const Pose2& alignment, const Landmark& query_last,
-                            const Landmark& match_last) const;
 };
 
 }  // namespace markloop
