@@ -124,7 +124,9 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   const std::size_t max_labels = static_cast<std::size_t>(rows) * ((cols + 1) / 2 + 1);
   parent_.assign(max_labels, 0);
   label_box_.assign(max_labels, Part{});
-  label_moments_.assign(config.horizon_from_lanes ? max_labels : 0, Moments{});
+  label_moments_.assign(max_labels, Moments{});
+  fill_reached_.assign(pixels, 0);
+  fill_queue_.assign(pixels, 0);
   parts_.assign(kMaxParts, Part{});
   group_parent_.assign(kMaxParts, 0);
   group_candidate_.assign(kMaxParts, -1);
@@ -242,7 +244,7 @@ void MarkingDetector::set_horizon_shift(int rows) {
   ++counters_.horizon_moves;
 }
 
-void MarkingDetector::note_lane_segment(const Part& box, const Moments& sums) {
+MarkingDetector::Axis MarkingDetector::axis(const Part& box, const Moments& sums) const {
   const auto& region = config_.region;
   const double n = box.area;
   const double mean_row = static_cast<double>(sums.row) / n;
@@ -256,7 +258,59 @@ void MarkingDetector::note_lane_segment(const Part& box, const Moments& sums) {
   const double major = 0.5 * (along + across) + half_gap;
   const double minor = std::max(0.0, 0.5 * (along + across) - half_gap);
   // A uniform bar of length L has a variance of L^2 / 12 along it.
-  const double length = std::sqrt(12.0 * major), width = std::sqrt(12.0 * minor);
+  return {mean_row, mean_col, std::sqrt(12.0 * major), std::sqrt(12.0 * minor),
+          0.5 * std::atan2(2.0 * both, along - across)};
+}
+
+bool MarkingDetector::encloses_road(int label, const Part& box) {
+  // Road inside the outline is what the box's border cannot reach without
+  // crossing this part's paint (4-connected, as the paint is 8-connected).
+  constexpr float kMinEnclosedM2 = 0.1f;
+  const int cols = mask_.cols;
+  const auto& region = config_.region;
+  const int min_enclosed = std::max(
+      1, static_cast<int>(std::lround(kMinEnclosedM2 / (region.x_step_m * region.y_step_m))));
+  std::int32_t* parent = parent_.data();
+  const std::int32_t* labels = pixel_labels_.data();
+  const auto is_paint = [&](int index) {
+    return labels[index] >= 0 && find_root(parent, labels[index]) == label;
+  };
+  std::size_t head = 0, tail = 0;
+  const auto reach = [&](int row, int col) {
+    const int index = row * cols + col;
+    if (fill_reached_[static_cast<std::size_t>(index)] != 0 || is_paint(index)) return;
+    fill_reached_[static_cast<std::size_t>(index)] = 1;
+    fill_queue_[tail++] = index;
+  };
+  for (int row = box.row0; row <= box.row1; ++row)
+    std::fill_n(fill_reached_.begin() + static_cast<std::ptrdiff_t>(row) * cols + box.col0,
+                box.col1 - box.col0 + 1, std::uint8_t{0});
+  for (int col = box.col0; col <= box.col1; ++col) {
+    reach(box.row0, col);
+    reach(box.row1, col);
+  }
+  for (int row = box.row0; row <= box.row1; ++row) {
+    reach(row, box.col0);
+    reach(row, box.col1);
+  }
+  while (head < tail) {
+    const int index = fill_queue_[head++];
+    const int row = index / cols, col = index % cols;
+    if (row > box.row0) reach(row - 1, col);
+    if (row < box.row1) reach(row + 1, col);
+    if (col > box.col0) reach(row, col - 1);
+    if (col < box.col1) reach(row, col + 1);
+  }
+  const int box_pixels = (box.row1 - box.row0 + 1) * (box.col1 - box.col0 + 1);
+  const int enclosed = box_pixels - box.area - static_cast<int>(tail);
+  return enclosed >= min_enclosed;
+}
+
+void MarkingDetector::note_lane_segment(const Axis& axis) {
+  const auto& region = config_.region;
+  const double xs = region.x_step_m, ys = region.y_step_m;
+  const double length = axis.length_m, width = axis.width_m, angle = axis.angle_rad;
+  const double mean_row = axis.mean_row, mean_col = axis.mean_col;
   // Long and thin: at least seven times as long as wide (blur and a pitch
   // other than calibrated widen lines in the view, so no fixed width);
   // dashes count.
@@ -265,7 +319,6 @@ void MarkingDetector::note_lane_segment(const Part& box, const Moments& sums) {
   // Its axis, from the road's direction: lines across the road (stop lines)
   // do not run to the horizon.
   constexpr double kMaxAngleRad = 0.3;
-  const double angle = 0.5 * std::atan2(2.0 * both, along - across);
   if (std::abs(angle) > kMaxAngleRad) return;
   const double half_rows = 0.5 * length * std::cos(angle) / xs;
   const double half_cols = 0.5 * length * std::sin(angle) / ys;
@@ -465,7 +518,6 @@ std::size_t MarkingDetector::label_parts() {
   std::int32_t* parent = parent_.data();
   int next = 0;
   const int max_labels = static_cast<int>(parent_.size());
-  const bool lane_axes = config_.horizon_from_lanes;
   lane_segment_count_ = 0;
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
@@ -499,7 +551,7 @@ std::size_t MarkingDetector::label_parts() {
         label = next++;
         parent[label] = label;
         label_box_[label] = Part{c, r, c, r, 0, 0};
-        if (lane_axes) label_moments_[label] = Moments{};
+        label_moments_[label] = Moments{};
       }
       row[c] = label;
       Part& box = label_box_[label];
@@ -507,14 +559,12 @@ std::size_t MarkingDetector::label_parts() {
       box.col1 = std::max(box.col1, c);
       box.row1 = r;  // rows only grow
       ++box.area;
-      if (lane_axes) {
-        Moments& sums = label_moments_[label];
-        sums.row += r;
-        sums.col += c;
-        sums.row_row += static_cast<std::int64_t>(r) * r;
-        sums.col_col += static_cast<std::int64_t>(c) * c;
-        sums.row_col += static_cast<std::int64_t>(r) * c;
-      }
+      Moments& sums = label_moments_[label];
+      sums.row += r;
+      sums.col += c;
+      sums.row_row += static_cast<std::int64_t>(r) * r;
+      sums.col_col += static_cast<std::int64_t>(c) * c;
+      sums.row_col += static_cast<std::int64_t>(r) * c;
     }
   }
   // Merge each provisional label's box into its root's.
@@ -528,15 +578,13 @@ std::size_t MarkingDetector::label_parts() {
     into.row0 = std::min(into.row0, from.row0);
     into.row1 = std::max(into.row1, from.row1);
     into.area += from.area;
-    if (lane_axes) {
-      Moments& sums = label_moments_[root];
-      const Moments& more = label_moments_[label];
-      sums.row += more.row;
-      sums.col += more.col;
-      sums.row_row += more.row_row;
-      sums.col_col += more.col_col;
-      sums.row_col += more.row_col;
-    }
+    Moments& sums = label_moments_[root];
+    const Moments& more = label_moments_[label];
+    sums.row += more.row;
+    sums.col += more.col;
+    sums.row_row += more.row_row;
+    sums.col_col += more.col_col;
+    sums.row_col += more.row_col;
   }
   const auto& region = config_.region;
   std::size_t count = 0;
@@ -544,14 +592,21 @@ std::size_t MarkingDetector::label_parts() {
     if (parent[label] != label) continue;
     const Part& box = label_box_[label];
     if (box.area < min_part_area_px_) continue;
-    if (lane_axes) note_lane_segment(box, label_moments_[label]);
+    const Axis part_axis = axis(box, label_moments_[label]);
+    if (config_.horizon_from_lanes) note_lane_segment(part_axis);
     const float length = static_cast<float>(box.row1 - box.row0 + 1) * region.x_step_m;
     const float width = static_cast<float>(box.col1 - box.col0 + 1) * region.y_step_m;
     const float fill = static_cast<float>(box.area) /
                        static_cast<float>((box.row1 - box.row0 + 1) * (box.col1 - box.col0 + 1));
-    if ((width <= config_.line_max_width_m && length >= config_.line_min_length_m) ||
-        (width >= config_.sparse_min_size_m && length >= config_.sparse_min_size_m &&
-         fill < config_.sparse_max_fill)) {
+    // Lines at an angle to the view's columns (a bend, a road crossed
+    // obliquely) are thin along their own axis, not their box's.
+    const bool oblique_line = part_axis.width_m <= config_.line_max_width_m &&
+                              part_axis.length_m >= config_.line_min_length_m;
+    // A sparse part is a line or kerb unless it is a closed outline.
+    const bool sparse = width >= config_.sparse_min_size_m && length >= config_.sparse_min_size_m &&
+                        fill < config_.sparse_max_fill;
+    if ((width <= config_.line_max_width_m && length >= config_.line_min_length_m) || oblique_line ||
+        (sparse && !encloses_road(label, box))) {
       ++counters_.lane_lines;
       continue;
     }

@@ -64,10 +64,13 @@ struct DetectorConfig {
   float min_contrast_ratio = 0.12f;
   float min_part_area_m2 = 0.02f;  // smaller specks are noise
   // Thin long parts are lane lines or kerbs: never grouped, never classified.
+  // Thin and long in their box or along their own axis (second moments), so
+  // that a line at an angle to the road counts too.
   float line_max_width_m = 0.30f;
   float line_min_length_m = 2.0f;
   // Large sparse parts (a stop line joined to a lane line, kerbs) are set
-  // apart likewise: both sides over sparse_min_size_m, paint under sparse_max_fill.
+  // apart likewise: both sides over sparse_min_size_m, paint under sparse_max_fill,
+  // and no road enclosed (a diamond's outline is sparse too).
   float sparse_min_size_m = 2.0f;
   float sparse_max_fill = 0.15f;
   // Where a line along the road (paint run >= junction_along_m) crosses
@@ -212,10 +215,21 @@ class MarkingDetector {
     int area;
     int group;
   };
-  // Sums over a provisional label's pixels, for its axis (lane lines).
+  // Sums over a provisional label's pixels, for its axis.
   struct Moments {
     std::int64_t row, col, row_row, col_col, row_col;
   };
+  // A part's principal axis on the ground: the length and width of the bar
+  // with the same second moments, its angle from the road's direction.
+  struct Axis {
+    double mean_row, mean_col;
+    double length_m, width_m;
+    double angle_rad;
+  };
+  Axis axis(const Part& box, const Moments& sums) const;
+  // True when the paint of `label` (a root label) encloses road of at least
+  // kMinEnclosedM2 inside its box: a closed outline (a diamond), no line.
+  bool encloses_road(int label, const Part& box);
 
   void threshold();
   void cut_line_junctions();
@@ -233,7 +247,7 @@ class MarkingDetector {
   std::span<const Detection> reject_frame();
   std::span<const Detection> detect_frame(const cv::Mat& grey, bool still);
   void process(const cv::Mat& grey, bool still);
-  void note_lane_segment(const Part& box, const Moments& sums);
+  void note_lane_segment(const Axis& axis);
   std::optional<float> measure_horizon_shift() const;
   void set_horizon_shift(int rows);
   void update_view_masks();
@@ -256,6 +270,8 @@ class MarkingDetector {
   std::vector<std::int32_t> parent_;        // union-find over provisional labels
   std::vector<Part> label_box_;             // box and area per provisional label
   std::vector<Moments> label_moments_;      // pixel sums per provisional label
+  std::vector<std::uint8_t> fill_reached_;  // encloses_road(): pixels reached from the box's border
+  std::vector<std::int32_t> fill_queue_;    // ... and those still to visit
   std::vector<Part> parts_;                 // kMaxParts
   std::vector<std::int32_t> group_parent_;     // union-find over parts
   std::vector<std::int32_t> group_candidate_;  // group root -> candidate index

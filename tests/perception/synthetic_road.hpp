@@ -1,9 +1,10 @@
 // Synthetic camera frames for the detector tests: a flat grey road with a
-// fixed texture, and white paint rectangles placed on the ground in the
-// vehicle frame, drawn through the camera model (so distortion and
-// perspective are the detector's own).
+// fixed texture, and white paint (rectangles along the road, or lines at any
+// angle) placed on the ground in the vehicle frame, drawn through the camera
+// model (so distortion and perspective are the detector's own).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -16,10 +17,28 @@ namespace markloop::perception::testing {
 struct GroundRect {
   double x0, x1;  // along the road, metres ahead
   double y0, y1;  // across, metres left
+
+  bool covers(const Eigen::Vector2d& g) const {
+    return g.x() >= x0 && g.x() <= x1 && g.y() >= y0 && g.y() <= y1;
+  }
 };
 
-inline cv::Mat render_road(const CameraModel& camera, const std::vector<GroundRect>& paint,
-                           int road_grey = 70, int paint_grey = 200) {
+// A painted line from (x0, y0) to (x1, y1), `width` metres wide.
+struct GroundLine {
+  double x0, y0, x1, y1;
+  double width = 0.15;
+
+  bool covers(const Eigen::Vector2d& g) const {
+    const Eigen::Vector2d a(x0, y0), b(x1, y1);
+    const double t = std::clamp((g - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    return (g - (a + t * (b - a))).norm() <= 0.5 * width;
+  }
+};
+
+// The road with paint wherever is_paint(ground point) says.
+template <typename IsPaint>
+cv::Mat render_road_where(const CameraModel& camera, IsPaint is_paint, int road_grey = 70,
+                          int paint_grey = 200) {
   cv::Mat image(camera.height(), camera.width(), CV_8UC1);
   for (int v = 0; v < image.rows; ++v) {
     auto* row = image.ptr<std::uint8_t>(v);
@@ -32,13 +51,29 @@ inline cv::Mat render_road(const CameraModel& camera, const std::vector<GroundRe
       // Deterministic asphalt texture of +-6 grey levels.
       const std::uint32_t h = (static_cast<std::uint32_t>(u) * 73856093u) ^
                               (static_cast<std::uint32_t>(v) * 19349663u);
-      int value = road_grey + static_cast<int>(h % 13u) - 6;
-      for (const GroundRect& r : paint)
-        if (g.x() >= r.x0 && g.x() <= r.x1 && g.y() >= r.y0 && g.y() <= r.y1) value = paint_grey;
+      const int value = is_paint(g) ? paint_grey : road_grey + static_cast<int>(h % 13u) - 6;
       row[u] = static_cast<std::uint8_t>(value);
     }
   }
   return image;
+}
+
+inline cv::Mat render_road(const CameraModel& camera, const std::vector<GroundRect>& paint,
+                           int road_grey = 70, int paint_grey = 200) {
+  return render_road_where(
+      camera,
+      [&](const Eigen::Vector2d& g) {
+        return std::any_of(paint.begin(), paint.end(), [&](const GroundRect& r) { return r.covers(g); });
+      },
+      road_grey, paint_grey);
+}
+
+inline cv::Mat render_road_lines(const CameraModel& camera, const std::vector<GroundLine>& lines,
+                                 const std::vector<GroundRect>& blocks = {}) {
+  return render_road_where(camera, [&](const Eigen::Vector2d& g) {
+    return std::any_of(lines.begin(), lines.end(), [&](const GroundLine& l) { return l.covers(g); }) ||
+           std::any_of(blocks.begin(), blocks.end(), [&](const GroundRect& r) { return r.covers(g); });
+  });
 }
 
 }  // namespace markloop::perception::testing

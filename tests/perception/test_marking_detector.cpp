@@ -1,3 +1,4 @@
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <span>
@@ -15,8 +16,10 @@
 #include "synthetic_road.hpp"
 
 using namespace markloop::perception;
+using markloop::perception::testing::GroundLine;
 using markloop::perception::testing::GroundRect;
 using markloop::perception::testing::render_road;
+using markloop::perception::testing::render_road_lines;
 
 namespace {
 const std::string kCameras = std::string(MARKLOOP_SOURCE_DIR) + "/app/cameras/";
@@ -205,6 +208,51 @@ TEST_CASE("detector: lane lines are set apart, not classified") {
   detector.detect(frame);
   CHECK(detector.counters().lane_lines >= 2);
   CHECK(detector.candidates().empty());
+}
+
+TEST_CASE("detector: a short line at an angle to the road is set apart, and groups with nothing") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  // 3 m of lane line at 30 degrees to the road (a bend, a road crossed at an
+  // angle): its box, 2.6 m x 1.5 m, is neither thin nor sparse. A digit
+  // 0.25 m beside it would be grouped with it, were it a part.
+  const GroundLine oblique{8.0, 1.5, 10.6, 0.0};
+  const GroundRect digit{8.6, 9.8, -0.5, -0.1};
+  detector.detect(render_road_lines(camera, {oblique}, {digit}));
+  CHECK(detector.counters().lane_lines == 1);
+  REQUIRE(detector.candidates().size() == 1);
+  const Candidate& c = detector.candidates()[0];
+  CHECK(c.parts == 1);
+  CHECK(c.width_m == Catch::Approx(0.4).margin(0.1));
+  CHECK(c.length_m == Catch::Approx(1.2).margin(0.15));
+}
+
+TEST_CASE("detector: a closed outline is a candidate; the same lines left open are set apart") {
+  const CameraModel camera = default_camera_model();
+  // A diamond 5 m long and 1.2 m wide at 40 degrees to the road: its box
+  // (3.8 m x 3.2 m) is sparse, as a line's across a bend is.
+  const double along = 2.5, half_width = 0.6, angle = 40.0 * std::numbers::pi / 180.0;
+  const Eigen::Vector2d centre(11.0, 0.0), u(std::cos(angle), std::sin(angle)), n(-u.y(), u.x());
+  const std::array<Eigen::Vector2d, 4> corner = {centre + along * u, centre + half_width * n,
+                                                 centre - along * u, centre - half_width * n};
+  std::vector<GroundLine> sides;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const Eigen::Vector2d& a = corner[i];
+    const Eigen::Vector2d& b = corner[(i + 1) % 4];
+    sides.push_back({a.x(), a.y(), b.x(), b.y()});
+  }
+  MarkingDetector closed(camera);
+  closed.detect(render_road_lines(camera, sides));
+  REQUIRE(closed.candidates().size() == 1);
+  CHECK(closed.counters().lane_lines == 0);
+  CHECK(closed.candidates()[0].length_m == Catch::Approx(3.8).margin(0.3));
+  CHECK(closed.candidates()[0].width_m == Catch::Approx(3.2).margin(0.3));
+
+  sides.pop_back();
+  MarkingDetector open(camera);
+  open.detect(render_road_lines(camera, sides));
+  CHECK(open.counters().lane_lines == 1);
+  CHECK(open.candidates().empty());
 }
 
 TEST_CASE("detector: a piece inside a larger marking is no detection of its own") {
