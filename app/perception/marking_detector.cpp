@@ -632,9 +632,15 @@ void MarkingDetector::group_parts(std::size_t part_count) {
   const int max_rows = static_cast<int>(std::lround(config_.group_max_part_m / region.x_step_m));
   const int bar_min_cols = static_cast<int>(std::lround(config_.bar_min_width_m / region.y_step_m));
   const int bar_max_rows = static_cast<int>(std::lround(config_.bar_max_length_m / region.x_step_m));
+  const int line_cols = static_cast<int>(std::lround(config_.line_max_width_m / region.y_step_m));
   const auto groupable = [&](const Part& p) {
     const bool bar = p.col1 - p.col0 + 1 >= bar_min_cols && p.row1 - p.row0 + 1 <= bar_max_rows;
-    return p.col1 - p.col0 < max_cols && p.row1 - p.row0 < max_rows && !bar;
+    // A thin part running out of the view (a lane dash coming into sight,
+    // too short yet to be set apart as a line) would make a marking it
+    // joins look cut by the edge.
+    const bool line_coming_in =
+        p.col1 - p.col0 + 1 <= line_cols && (touched_edges(p) & kOtherEdge) != 0;
+    return p.col1 - p.col0 < max_cols && p.row1 - p.row0 < max_rows && !bar && !line_coming_in;
   };
   std::int32_t* parent = group_parent_.data();
   for (std::size_t i = 0; i < part_count; ++i) parent[i] = static_cast<std::int32_t>(i);
@@ -708,7 +714,8 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
   return false;
 }
 
-std::uint8_t MarkingDetector::touched_edges(const Candidate& c) const {
+template <typename Box>
+std::uint8_t MarkingDetector::touched_edges(const Box& c) const {
   // Paint of the box next to the edge of the view: the marking may go on
   // beyond it. The box alone would say so for every marking whose box
   // corner reaches into the unseen corners of the view.

@@ -241,8 +241,10 @@ class MarkingDetector {
     float far, near, left, right;
   };
   GroundBox ground_box(const Candidate& candidate) const;
-  // kNearEdge | kOtherEdge bits of the edge pixels the candidate's paint touches.
-  std::uint8_t touched_edges(const Candidate& candidate) const;
+  // kNearEdge | kOtherEdge bits of the edge pixels the paint in a box (a
+  // Candidate's or a Part's) touches.
+  template <typename Box>
+  std::uint8_t touched_edges(const Box& box) const;
   bool usable(const cv::Mat& grey) const;
   std::span<const Detection> reject_frame();
   std::span<const Detection> detect_frame(const cv::Mat& grey, bool still);

@@ -380,6 +380,25 @@ TEST_CASE("detector: the guard band shows a marking ending at the region's edge 
   CHECK(guarded.birdseye().cols() == unguarded.birdseye().cols() + 2 * 8);
 }
 
+TEST_CASE("detector: a lane dash coming into view at the far end does not make a marking look cut") {
+  const CameraModel camera = default_camera_model();
+  const SureModel sure(static_cast<int>(*marking_class_from_name("stop")));
+  DetectorConfig config;
+  config.model = &sure.model;
+  const double far = config.region.x_far_m;
+  // A word ending 0.4 m short of the far end, and beside it, 0.2 m to the
+  // side and 0.2 m beyond it, a dash running on out of the view: within the
+  // grouping gaps, and too short in view to be set apart as a line.
+  const GroundRect word{far - 1.6, far - 0.4, -0.9, -0.1};
+  const GroundRect dash{far - 0.2, far + 3.0, 0.1, 0.25};
+  MarkingDetector detector(camera, config);
+  const auto detections = detector.detect(render_road(camera, {word, dash}));
+  REQUIRE(detections.size() == 1);
+  CHECK(detections[0].ground_x == Catch::Approx(far - 1.0).margin(0.15));
+  CHECK(detections[0].ground_y == Catch::Approx(-0.5).margin(0.1));
+  CHECK(detector.counters().clipped == 1);  // the dash, alone
+}
+
 TEST_CASE("detector: an empty road gives nothing; wrong frames are counted, not processed") {
   const CameraModel camera = default_camera_model();
   MarkingDetector detector(camera);
