@@ -8,7 +8,7 @@
 # REAL_DIR: the real images (roadmarks-honda layout; default
 # ../shared/data/roadmarks-honda). They are read, never copied. The simulator
 # data is rendered into build/train-data with fixed seeds: training sets
-# 101..105 (600 images each) through the simulator's camera, 201..203 through
+# 101..110 (600 images each) through the simulator's camera, 201..206 through
 # the real images' camera (app/cameras/honda.yaml: its homography, bird's-eye
 # region and bonnet), and a drive of the `figure8` scenario with seed 21
 # (curves, lane changes, off-road clutter) to train on; held apart for
@@ -32,14 +32,14 @@ training_set() {
   [ -z "${4:-}" ] || cp "$4" "$2/camera.yaml"
 }
 sims=""
-for seed in 101 102 103 104 105; do
+for seed in 101 102 103 104 105 106 107 108 109 110; do
   training_set "$seed" "$DATA/sim$seed" 600
   sims="$sims --sim $DATA/sim$seed"
 done
 # The same kind of scenes seen through the real images' camera: the
 # classifier learns markings at that camera's bird's-eye resolution and smear
 # too, not at one camera's only.
-for seed in 201 202 203; do
+for seed in 201 202 203 204 205 206; do
   training_set "$seed" "$DATA/honda$seed" 600 app/cameras/honda.yaml
   sims="$sims --sim $DATA/honda$seed"
 done
