@@ -129,6 +129,7 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   fill_queue_.assign(pixels, 0);
   parts_.assign(kMaxParts, Part{});
   group_parent_.assign(kMaxParts, 0);
+  part_groupable_.assign(kMaxParts, 0);
   group_candidate_.assign(kMaxParts, -1);
 }
 
@@ -643,13 +644,18 @@ void MarkingDetector::group_parts(std::size_t part_count) {
     return p.col1 - p.col0 < max_cols && p.row1 - p.row0 < max_rows && !bar && !line_coming_in;
   };
   std::int32_t* parent = group_parent_.data();
-  for (std::size_t i = 0; i < part_count; ++i) parent[i] = static_cast<std::int32_t>(i);
+  // Decided once per part: the pairs below would scan a thin part's edge
+  // paint once per partner.
+  for (std::size_t i = 0; i < part_count; ++i) {
+    parent[i] = static_cast<std::int32_t>(i);
+    part_groupable_[i] = groupable(parts_[i]) ? 1 : 0;
+  }
   for (std::size_t i = 0; i < part_count; ++i) {
     const Part& a = parts_[i];
-    if (!groupable(a)) continue;
+    if (part_groupable_[i] == 0) continue;
     for (std::size_t j = i + 1; j < part_count; ++j) {
       const Part& b = parts_[j];
-      if (!groupable(b)) continue;
+      if (part_groupable_[j] == 0) continue;
       if (b.col0 > a.col1 + gap_cols || a.col0 > b.col1 + gap_cols) continue;
       if (b.row0 > a.row1 + gap_rows || a.row0 > b.row1 + gap_rows) continue;
       unite(parent, static_cast<int>(i), static_cast<int>(j));

@@ -276,6 +276,7 @@ class MarkingDetector {
   std::vector<std::int32_t> fill_queue_;    // ... and those still to visit
   std::vector<Part> parts_;                 // kMaxParts
   std::vector<std::int32_t> group_parent_;     // union-find over parts
+  std::vector<std::uint8_t> part_groupable_;   // per part: may join a group
   std::vector<std::int32_t> group_candidate_;  // group root -> candidate index
   std::array<Candidate, kMaxCandidates> candidates_{};
   std::size_t candidate_count_ = 0;
