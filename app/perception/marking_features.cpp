@@ -11,6 +11,10 @@ namespace {
 // the paint is inside the patch.
 constexpr float kMargin = 0.08f;
 constexpr float kHogClip = 0.2f;
+constexpr int kHogBlockCells = 2;  // HOG normalised per block of 2 x 2 cells
+constexpr float kHogBlockFloor = 0.1f;
+static_assert((kPatchCols / kHogCell) % kHogBlockCells == 0 &&
+              (kPatchRows / kHogCell) % kHogBlockCells == 0, "whole blocks of cells");
 
 float sample(const cv::Mat& image, float x, float y) {
   const int x0 = std::clamp(static_cast<int>(std::floor(x)), 0, image.cols - 1);
@@ -25,11 +29,15 @@ float sample(const cv::Mat& image, float x, float y) {
   return top + (bottom - top) * fy;
 }
 
-void normalise(float* v, int n) {
-  float sum = 1e-6f;
+// L2-Hys over `n` values: scaled to unit length, clipped, scaled again.
+// `floor` is added to the squared length (in the units of the values) so
+// that a block with hardly any edges is not blown up to the size of one
+// with many.
+void normalise(float* v, int n, float floor) {
+  float sum = floor + 1e-6f;
   for (int i = 0; i < n; ++i) sum += v[i] * v[i];
   float scale = 1.0f / std::sqrt(sum);
-  sum = 1e-6f;
+  sum = floor * scale * scale + 1e-6f;
   for (int i = 0; i < n; ++i) {
     v[i] = std::min(v[i] * scale, kHogClip);
     sum += v[i] * v[i];
@@ -71,6 +79,7 @@ void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& b
   float* hog = out.data();
   std::fill(hog, hog + kHogFeatures, 0.0f);
   constexpr int kCellCols = kPatchCols / kHogCell;
+  constexpr int kCellRows = kPatchRows / kHogCell;
   constexpr float kBinWidth = 2.0f * std::numbers::pi_v<float> / kHogBins;
   for (int r = 0; r < kPatchRows; ++r) {
     for (int c = 0; c < kPatchCols; ++c) {
@@ -93,7 +102,30 @@ void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& b
       h[(b0 + 1) % kHogBins] += magnitude * frac;
     }
   }
-  normalise(hog, kHogFeatures);
+  // Each block of 2 x 2 cells on its own, as in Dalal and Triggs' HOG: a
+  // shadow across part of a marking weakens the edges there and only
+  // there. The floor, a fraction of a block's mean energy, keeps blocks of
+  // bare road near zero.
+  float energy = 0.0f;
+  for (int i = 0; i < kHogFeatures; ++i) energy += hog[i] * hog[i];
+  constexpr int kBlockFeatures = kHogBlockCells * kHogBlockCells * kHogBins;
+  constexpr int kBlocks = kHogFeatures / kBlockFeatures;
+  const float floor = kHogBlockFloor * energy / kBlocks;
+  std::array<float, kBlockFeatures> block;
+  for (int block_row = 0; block_row < kCellRows / kHogBlockCells; ++block_row)
+    for (int block_col = 0; block_col < kCellCols / kHogBlockCells; ++block_col) {
+      // The block's cells, copied out and back: they are not contiguous.
+      const auto cell = [&](int k) {
+        const int row = block_row * kHogBlockCells + k / kHogBlockCells;
+        const int col = block_col * kHogBlockCells + k % kHogBlockCells;
+        return hog + (row * kCellCols + col) * kHogBins;
+      };
+      for (int k = 0; k < kHogBlockCells * kHogBlockCells; ++k)
+        std::copy_n(cell(k), kHogBins, block.begin() + k * kHogBins);
+      normalise(block.data(), kBlockFeatures, floor);
+      for (int k = 0; k < kHogBlockCells * kHogBlockCells; ++k)
+        std::copy_n(block.begin() + k * kHogBins, kHogBins, cell(k));
+    }
 
   float* occupancy = hog + kHogFeatures;
   constexpr int kOccCols = kPatchCols / kOccupancyCell;

@@ -1,7 +1,7 @@
 // Features of one marking candidate, computed on its box in the bird's-eye
-// image: a HOG of the patch resampled to a fixed size, the paint occupancy
-// on a coarse grid, and the size of the box on the ground. Fixed-size
-// arrays, no allocation.
+// image: a HOG of the patch resampled to a fixed size (normalised per block
+// of 2 x 2 cells), the paint occupancy on a coarse grid, and the size of
+// the box on the ground. Fixed-size arrays, no allocation.
 #pragma once
 
 #include <array>
