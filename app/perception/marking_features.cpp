@@ -30,14 +30,14 @@ float sample(const cv::Mat& image, float x, float y) {
 }
 
 // L2-Hys over `n` values: scaled to unit length, clipped, scaled again.
-// `floor` is added to the squared length (in the units of the values) so
-// that a block with hardly any edges is not blown up to the size of one
-// with many.
-void normalise(float* v, int n, float floor) {
-  float sum = floor + 1e-6f;
+// `energy_floor` is added to the squared length (in the units of the
+// values) so that a block with hardly any edges is not blown up to the size
+// of one with many.
+void normalise(float* v, int n, float energy_floor) {
+  float sum = energy_floor + 1e-6f;
   for (int i = 0; i < n; ++i) sum += v[i] * v[i];
   float scale = 1.0f / std::sqrt(sum);
-  sum = floor * scale * scale + 1e-6f;
+  sum = energy_floor * scale * scale + 1e-6f;
   for (int i = 0; i < n; ++i) {
     v[i] = std::min(v[i] * scale, kHogClip);
     sum += v[i] * v[i];
@@ -110,7 +110,7 @@ void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& b
   for (int i = 0; i < kHogFeatures; ++i) energy += hog[i] * hog[i];
   constexpr int kBlockFeatures = kHogBlockCells * kHogBlockCells * kHogBins;
   constexpr int kBlocks = kHogFeatures / kBlockFeatures;
-  const float floor = kHogBlockFloor * energy / kBlocks;
+  const float energy_floor = kHogBlockFloor * energy / kBlocks;
   std::array<float, kBlockFeatures> block;
   for (int block_row = 0; block_row < kCellRows / kHogBlockCells; ++block_row)
     for (int block_col = 0; block_col < kCellCols / kHogBlockCells; ++block_col) {
@@ -122,7 +122,7 @@ void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& b
       };
       for (int k = 0; k < kHogBlockCells * kHogBlockCells; ++k)
         std::copy_n(cell(k), kHogBins, block.begin() + k * kHogBins);
-      normalise(block.data(), kBlockFeatures, floor);
+      normalise(block.data(), kBlockFeatures, energy_floor);
       for (int k = 0; k < kHogBlockCells * kHogBlockCells; ++k)
         std::copy_n(block.begin() + k * kHogBins, kHogBins, cell(k));
     }
