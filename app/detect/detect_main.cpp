@@ -5,20 +5,24 @@
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
+#include <span>
 #include <string>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "cli/cli.hpp"
 #include "perception/camera_model.hpp"
 #include "perception/marking_classes.hpp"
+#include "perception/marking_classifier.hpp"
 #include "perception/marking_detector.hpp"
 
 namespace {
 
 constexpr const char* kUsage =
-    "usage: markloop-detect --camera FILE [--min-score S] [--whole-only] IMAGE...\n"
+    "usage: markloop-detect --camera FILE [--min-score S] [--whole-only] [--view DIR]\n"
+    "                       IMAGE...\n"
     "\n"
     "Detects and classifies road markings in still images (PNG or JPEG, any\n"
     "colour; converted to grey) taken by the camera FILE describes (OpenCV\n"
@@ -37,7 +41,13 @@ constexpr const char* kUsage =
     "  --camera FILE   calibration (required)\n"
     "  --min-score S   report detections scoring at least S (0..1; default the\n"
     "                  detector's, 0.6)\n"
-    "  --whole-only    report no partial markings\n";
+    "  --whole-only    report no partial markings\n"
+    "  --view DIR      also write what the detector saw, per image DIR/NAME.png\n"
+    "                  (NAME without its extension): the bird's-eye view at twice\n"
+    "                  its size, bright paint in red, each candidate's box with its\n"
+    "                  class and score: green reported, yellow a marking class not\n"
+    "                  reported (C: cut by the view's edge; or below the score, a\n"
+    "                  piece of a larger marking, beyond the region), grey rejected\n";
 
 // JSON string escaping for file names.
 std::string json_string(const std::string& s) {
@@ -58,6 +68,49 @@ std::string json_string(const std::string& s) {
   return out + "\"";
 }
 
+// The view a user checks a miss against: which paint the threshold found,
+// how it was grouped, and what each group was called.
+bool write_view(const markloop::perception::MarkingDetector& detector,
+                std::span<const markloop::perception::Detection> reported, const std::string& path) {
+  using namespace markloop::perception;
+  constexpr int kScale = 2;
+  cv::Mat view;
+  cv::cvtColor(detector.birdseye_image(), view, cv::COLOR_GRAY2BGR);
+  const cv::Mat& paint = detector.paint_mask();
+  for (int r = 0; r < view.rows; ++r)
+    for (int c = 0; c < view.cols; ++c)
+      if (paint.at<std::uint8_t>(r, c) != 0) {
+        auto& pixel = view.at<cv::Vec3b>(r, c);
+        pixel = {static_cast<std::uint8_t>(pixel[0] / 3), static_cast<std::uint8_t>(pixel[1] / 3), 255};
+      }
+  cv::resize(view, view, {}, kScale, kScale, cv::INTER_NEAREST);
+  for (const Candidate& c : detector.candidates()) {
+    Detection where{};
+    detector.locate(c, where);
+    const bool marking = c.predicted != kRejectClass;
+    bool was_reported = false;
+    for (const Detection& d : reported)
+      was_reported = was_reported || (static_cast<int>(d.label) == c.predicted &&
+                                      d.ground_x == where.ground_x && d.ground_y == where.ground_y);
+    const cv::Scalar colour = was_reported ? cv::Scalar(0, 220, 0)
+                              : marking    ? cv::Scalar(0, 220, 255)
+                                           : cv::Scalar(160, 160, 160);
+    const cv::Point top_left(c.col0 * kScale, c.row0 * kScale);
+    cv::rectangle(view, top_left, {(c.col1 + 1) * kScale - 1, (c.row1 + 1) * kScale - 1}, colour, 1);
+    char text[48];
+    std::snprintf(text, sizeof text, "%s %.2f%s",
+                  marking ? std::string(marking_class_name(static_cast<markloop::Label>(c.predicted))).c_str()
+                          : "reject",
+                  static_cast<double>(c.score), c.clipped ? " C" : "");
+    cv::putText(view, text, top_left + cv::Point(0, -3), cv::FONT_HERSHEY_PLAIN, 0.8, colour, 1);
+  }
+  try {
+    return cv::imwrite(path, view);
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -66,6 +119,7 @@ int main(int argc, char** argv) {
   std::string camera_path;
   double min_score = -1.0;
   bool whole_only = false;
+  std::string view_dir;
   std::vector<std::string> images;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -77,11 +131,13 @@ int main(int argc, char** argv) {
       whole_only = true;
       continue;
     }
-    if (arg == "--camera" || arg == "--min-score") {
+    if (arg == "--camera" || arg == "--min-score" || arg == "--view") {
       if (i + 1 >= argc) markloop::cli::fail(arg + ": needs a value (see --help)");
       const char* value = argv[++i];
       if (arg == "--camera") {
         camera_path = value;
+      } else if (arg == "--view") {
+        view_dir = value;
       } else {
         min_score = markloop::cli::parse_number(arg, value);
         if (min_score < 0.0 || min_score > 1.0)
@@ -107,6 +163,12 @@ int main(int argc, char** argv) {
   if (min_score >= 0.0) config.min_score = static_cast<float>(min_score);
   if (whole_only) config.report_partial_in_stills = false;
   MarkingDetector detector(*camera, config);
+  if (!view_dir.empty()) {
+    std::filesystem::create_directories(view_dir, ec);
+    if (!std::filesystem::is_directory(view_dir))
+      markloop::cli::fail("--view " + view_dir + ": cannot create the directory" +
+                          (ec ? " (" + ec.message() + ")" : std::string()));
+  }
 
   int failures = 0;
   for (const std::string& path : images) {
@@ -134,10 +196,20 @@ int main(int argc, char** argv) {
       ++failures;
       continue;
     }
-    const std::string name = json_string(path.substr(path.find_last_of('/') + 1));
+    const std::string file_name = std::filesystem::path(path).filename().string();
+    const std::string name = json_string(file_name);
     // Each image on its own: its own lane lines place the horizon (when the
     // calibration asks for it, detector_horizon_from_lanes).
-    for (const Detection& d : detector.detect_still(grey)) {
+    const std::span<const Detection> detections = detector.detect_still(grey);
+    if (!view_dir.empty()) {
+      const std::string view_path =
+          (std::filesystem::path(view_dir) / std::filesystem::path(path).stem()).string() + ".png";
+      if (!write_view(detector, detections, view_path)) {
+        std::fprintf(stderr, "markloop-detect: %s: cannot write the view\n", view_path.c_str());
+        ++failures;
+      }
+    }
+    for (const Detection& d : detections) {
       std::printf("{\"image\": %s, \"label\": \"%s\", \"score\": %.3f, \"quad\": [", name.c_str(),
                   std::string(marking_class_name(d.label)).c_str(), static_cast<double>(d.score));
       for (int k = 0; k < 4; ++k)

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# markloop-detect --view: one PNG per image, the bird's-eye view at twice
+# its size, and a clear refusal when the directory cannot be made.
+set -euo pipefail
+detect=$1 sim=$2 work=$3
+rm -rf "$work" && mkdir -p "$work"
+source "$(dirname "$0")/../cli_check.sh"
+
+"$sim" training-set --out "$work/set" --seed 9002 --frames 2 >/dev/null 2>&1
+images=("$work"/set/images/*.png)
+check "view written" 0 "" -- "$detect" --camera "$work/set/camera.yaml" --view "$work/view" "${images[@]}"
+# PNG header: width and height, big-endian, at bytes 16..23. The simulator's
+# camera views 346 x 316 pixels (the region and its guard band).
+for image in "${images[@]}"; do
+  view="$work/view/$(basename "${image%.png}").png"
+  if [ ! -f "$view" ]; then
+    echo "FAIL view of $image: $view missing"; failures=$((failures + 1)); continue
+  fi
+  read -r w1 w2 w3 w4 h1 h2 h3 h4 < <(od -An -tu1 -j16 -N8 "$view")
+  width=$(( (w1 << 24) | (w2 << 16) | (w3 << 8) | w4 )) height=$(( (h1 << 24) | (h2 << 16) | (h3 << 8) | h4 ))
+  if [ "$width" != 632 ] || [ "$height" != 692 ]; then
+    echo "FAIL view of $image: ${width}x${height}, want 632x692"; failures=$((failures + 1))
+  else
+    echo "ok   view of $(basename "$image"): ${width}x${height}"
+  fi
+done
+touch "$work/file"
+check "view directory refused" 2 "--view $work/file/views: cannot create the directory" -- \
+  "$detect" --camera "$work/set/camera.yaml" --view "$work/file/views" "${images[0]}"
+finish
