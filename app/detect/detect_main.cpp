@@ -164,10 +164,11 @@ int main(int argc, char** argv) {
   if (whole_only) config.report_partial_in_stills = false;
   MarkingDetector detector(*camera, config);
   if (!view_dir.empty()) {
-    std::filesystem::create_directories(view_dir, ec);
-    if (!std::filesystem::is_directory(view_dir))
+    std::error_code made, is_directory;
+    std::filesystem::create_directories(view_dir, made);
+    if (!std::filesystem::is_directory(view_dir, is_directory))
       markloop::cli::fail("--view " + view_dir + ": cannot create the directory" +
-                          (ec ? " (" + ec.message() + ")" : std::string()));
+                          (made ? " (" + made.message() + ")" : std::string()));
   }
 
   int failures = 0;
@@ -196,8 +197,7 @@ int main(int argc, char** argv) {
       ++failures;
       continue;
     }
-    const std::string file_name = std::filesystem::path(path).filename().string();
-    const std::string name = json_string(file_name);
+    const std::string name = json_string(std::filesystem::path(path).filename().string());
     // Each image on its own: its own lane lines place the horizon (when the
     // calibration asks for it, detector_horizon_from_lanes).
     const std::span<const Detection> detections = detector.detect_still(grey);
