@@ -164,9 +164,9 @@ int main(int argc, char** argv) {
   if (whole_only) config.report_partial_in_stills = false;
   MarkingDetector detector(*camera, config);
   if (!view_dir.empty()) {
-    std::error_code made, is_directory;
+    std::error_code made;
     std::filesystem::create_directories(view_dir, made);
-    if (!std::filesystem::is_directory(view_dir, is_directory))
+    if (!std::filesystem::is_directory(view_dir, ec))
       markloop::cli::fail("--view " + view_dir + ": cannot create the directory" +
                           (made ? " (" + made.message() + ")" : std::string()));
   }
