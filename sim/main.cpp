@@ -111,8 +111,11 @@ int drive(int argc, char** argv) {
     }
     if (arg == "--no-shadows") { options.conditions.shadows = false; continue; }
     if (arg == "--no-render") { options.render = false; continue; }
-    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
-    const char* value = argv[++i];
+    const char* value =
+        option_value(argc, argv, i,
+                     {"--scenario", "--route", "--out", "--seed", "--speed", "--fps", "--laps", "--camera",
+                      "--max-frames", "--occluders", "--noise", "--wear", "--drift", "--light",
+                      "--class-weights"});
     if (arg == "--scenario") scenario_name = value;
     else if (arg == "--route") route_file = value;
     else if (arg == "--out") out_dir = value;
@@ -135,8 +138,6 @@ int drive(int argc, char** argv) {
       std::string error;
       if (!parse_class_weights(value, weights, error)) fail("--class-weights: " + error);
       world.class_weights = weights;
-    } else {
-      fail("unknown option " + std::string(arg) + " (see --help)");
     }
   }
   if (out_dir.empty()) fail("--out DIR is required (see --help)");
@@ -202,13 +203,11 @@ int training_set(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       return 0;
     }
-    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
-    const char* value = argv[++i];
+    const char* value = option_value(argc, argv, i, {"--out", "--seed", "--frames", "--camera"});
     if (arg == "--out") options.out_dir = value;
     else if (arg == "--seed") options.seed = parse_whole(arg, value);
     else if (arg == "--frames") options.frames = parse_whole(arg, value);
     else if (arg == "--camera") camera_file = value;
-    else fail("unknown option " + std::string(arg) + " (see --help)");
   }
   if (options.out_dir.empty()) fail("--out DIR is required (see --help)");
   if (options.frames == 0) fail("--frames must be at least 1");
@@ -229,8 +228,8 @@ int live(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       return 0;
     }
-    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
-    const char* value = argv[++i];
+    const char* value =
+        option_value(argc, argv, i, {"--from", "--video", "--output", "--can", "--max-frames", "--format"});
     if (arg == "--from") options.drive_dir = value;
     else if (arg == "--video") options.video_device = value;
     else if (arg == "--output") options.video_output = static_cast<int>(parse_whole(arg, value));
@@ -241,8 +240,6 @@ int live(int argc, char** argv) {
       if (f == "grey") options.format = v4l2::PixelFormat::Grey;
       else if (f == "yuyv") options.format = v4l2::PixelFormat::Yuyv;
       else fail(std::string("--format: unknown '") + value + "' (grey, yuyv)");
-    } else {
-      fail("unknown option " + std::string(arg) + " (see --help)");
     }
   }
   if (options.drive_dir.empty()) fail("--from DIR is required (see --help)");

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 
@@ -21,6 +22,21 @@ inline const char*& program_name() {
 [[noreturn]] inline void fail(const std::string& message) {
   std::fprintf(stderr, "%s: %s\n", program_name(), message.c_str());
   std::exit(2);
+}
+
+// The value after the option argv[i], i moved onto it. `value_options`
+// lists the program's options that take a value: any other is unknown, and
+// one given last lacks its value; either fails saying so.
+inline const char* option_value(int argc, char** argv, int& i,
+                                std::initializer_list<std::string_view> value_options) {
+  const std::string_view option = argv[i];
+  bool known = false;
+  for (std::string_view o : value_options) known = known || o == option;
+  if (!known)
+    fail((option.starts_with("-") ? "unknown option " : "unexpected argument ") + std::string(option) +
+         " (see --help)");
+  if (i + 1 >= argc) fail(std::string(option) + " needs a value (see --help)");
+  return argv[++i];
 }
 
 inline double parse_number(std::string_view option, const char* text) {

@@ -81,8 +81,11 @@ int main(int argc, char** argv) {
     if (arg == "--realtime") { config.realtime_replay = true; continue; }
     if (arg == "--print-config") { print_config = true; continue; }
     if (arg == "--quiet") { options.quiet = true; continue; }
-    if (i + 1 >= argc) fail(std::string(arg) + (arg.starts_with("--") ? " needs a value (see --help)" : ": unexpected argument (see --help)"));
-    const char* value = argv[++i];
+    const char* value = markloop::cli::option_value(
+        argc, argv, i,
+        {"--config", "--camera-device", "--camera-file", "--can-interface", "--can-in", "--can-out",
+         "--calibration", "--map", "--detections-out", "--k", "--first-frame", "--frames", "--summary",
+         "--set"});
     if (arg == "--config") continue;
     else if (arg == "--camera-device") set("camera.device", value);
     else if (arg == "--camera-file") set("camera.file", value);
@@ -103,8 +106,6 @@ int main(int argc, char** argv) {
               config, std::string_view(value, static_cast<std::size_t>(equals - value)), equals + 1);
           !error.empty())
         fail("--set: " + error);
-    } else {
-      fail("unknown option " + std::string(arg) + " (see --help)");
     }
   }
   if (std::string error = markloop::ecu::validate_config(config); !error.empty()) fail(error);

@@ -89,11 +89,8 @@ Options parse(int argc, char** argv) {
       o.dir = arg;
       continue;
     }
-    if (arg != "--can" && arg != "--detections" && arg != "--tolerance" && arg != "--svg" &&
-        arg != "--png" && arg != "--json")
-      fail("unknown option " + std::string(arg) + " (see --help)");
-    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
-    const char* v = argv[++i];
+    const char* v =
+        option_value(argc, argv, i, {"--can", "--detections", "--tolerance", "--svg", "--png", "--json"});
     if (arg == "--can") o.can = v;
     else if (arg == "--detections") o.detections = v, o.detections_given = true;
     else if (arg == "--tolerance") o.tolerance = parse_number(arg, v);

@@ -94,15 +94,12 @@ Options parse(int argc, char** argv) {
     }
     if (arg == "--compat") { o.compat = true; continue; }
     if (arg == "--quiet") { o.quiet = true; continue; }
-    static constexpr std::string_view kValueOptions[] = {
-        "--markings", "--poses", "--out", "--jsonl", "--truth", "--fps", "--truth-radius", "--k",
-        "--abs-tol", "--rel-tol", "--min-separation", "--min-separation-s", "--max-residual",
-        "--association-radius", "--commit-after", "--min-observations", "--skip-rows", "--sequence-capacity",
-        "--landmark-capacity", "--sweep"};
-    if (std::find(std::begin(kValueOptions), std::end(kValueOptions), arg) == std::end(kValueOptions))
-      fail("unknown option " + std::string(arg) + " (see --help)");
-    if (i + 1 >= argc) fail(std::string(arg) + " needs a value (see --help)");
-    const char* v = argv[++i];
+    const char* v = option_value(
+        argc, argv, i,
+        {"--markings", "--poses", "--out", "--jsonl", "--truth", "--fps", "--truth-radius", "--k",
+         "--abs-tol", "--rel-tol", "--min-separation", "--min-separation-s", "--max-residual",
+         "--association-radius", "--commit-after", "--min-observations", "--skip-rows",
+         "--sequence-capacity", "--landmark-capacity", "--sweep"});
     if (arg == "--markings") o.markings = v;
     else if (arg == "--poses") o.poses = v;
     else if (arg == "--out") o.out = v;

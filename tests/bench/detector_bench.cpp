@@ -62,8 +62,7 @@ int main(int argc, char** argv) {
       horizon_from_lanes = true;
       continue;
     }
-    if (i + 1 >= argc) markloop::cli::fail(arg + ": needs a value (see --help)");
-    const char* value = argv[++i];
+    const char* value = markloop::cli::option_value(argc, argv, i, {"--camera", "--y4m", "--frames", "--skip"});
     if (arg == "--camera")
       camera_path = value;
     else if (arg == "--y4m")
@@ -72,8 +71,6 @@ int main(int argc, char** argv) {
       frames = markloop::cli::parse_whole(arg, value);
     else if (arg == "--skip")
       skip = markloop::cli::parse_whole(arg, value);
-    else
-      markloop::cli::fail("unknown option " + arg + " (see --help)");
   }
   if (frames == 0) markloop::cli::fail("--frames must be at least 1");
   std::string error;

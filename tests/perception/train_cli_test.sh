@@ -11,6 +11,8 @@ check "no data" 2 "no training data" -- "$train" --folds 0
 check "bad members" 2 "--members must be 1..4" -- "$train" --sim "$work/none" --members 9
 check "evaluate nothing" 2 "nothing to judge" -- "$train" --evaluate-builtin
 check "evaluate trains nothing" 2 "trains nothing" -- "$train" --evaluate-builtin --sim "$work/none"
+check "unknown option" 2 "unknown option --frobnicate" -- "$train" --frobnicate 1
+check "no value" 2 "^markloop-train: --real needs a value" -- "$train" --real
 check "missing set" 2 "$work/none" -- "$train" --evaluate-builtin --sim-test "$work/none"
 
 "$sim" training-set --out "$work/set" --seed 9002 --frames 6 >/dev/null 2>&1

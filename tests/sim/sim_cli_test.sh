@@ -10,6 +10,10 @@ check "help" 0 "usage: markloop-sim drive" -- "$sim" --help
 check "drive help" 0 "odometry.log" -- "$sim" drive --help
 check "no command" 2 "usage" -- "$sim"
 check "list" 0 "two-days" -- "$sim" list
+check "unknown drive option" 2 "unknown option --frobnicate" -- "$sim" drive --frobnicate 1 --out "$work/x"
+check "no value" 2 "^markloop-sim: --out needs a value" -- "$sim" drive --out
+check "unknown training-set option" 2 "unknown option --frobnicate" -- "$sim" training-set --frobnicate
+check "unknown live option" 2 "unknown option --frobnicate" -- "$sim" live --frobnicate
 check "no out" 2 "--out DIR is required" -- "$sim" drive --scenario loop
 check "unknown scenario" 2 "unknown scenario 'moon'" -- "$sim" drive --scenario moon --out "$work/x"
 check "both" 2 "not both" -- "$sim" drive --scenario loop --route r --out "$work/x"

@@ -784,8 +784,11 @@ int main(int argc, char** argv) {
       evaluate_builtin = true;
       continue;
     }
-    if (i + 1 >= argc) fail(arg + ": needs a value (see --help)");
-    const char* value = argv[++i];
+    const char* value = markloop::cli::option_value(
+        argc, argv, i,
+        {"--real", "--real-camera", "--sim", "--sim-test", "--sim-drive", "--sim-drive-train", "--folds",
+         "--seed", "--epochs", "--members", "--hidden", "--real-weight", "--reject-weight",
+         "--weight-decay", "--out"});
     command += " " + arg + " " + value;
     if (arg == "--real")
       real_dir = value;
@@ -817,8 +820,6 @@ int main(int argc, char** argv) {
       options.weight_decay = static_cast<float>(markloop::cli::parse_number(arg, value));
     else if (arg == "--out")
       out = value;
-    else
-      fail("unknown option " + arg + " (see --help)");
   }
   if (evaluate_builtin && (!sim_dirs.empty() || !sim_drive_train_dirs.empty() || !out.empty()))
     fail("--evaluate-builtin trains nothing: give only --real, --real-camera, --sim-test and --sim-drive");
