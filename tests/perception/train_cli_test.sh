@@ -14,6 +14,11 @@ check "evaluate trains nothing" 2 "trains nothing" -- "$train" --evaluate-builti
 check "unknown option" 2 "unknown option --frobnicate" -- "$train" --frobnicate 1
 check "no value" 2 "^markloop-train: --real needs a value" -- "$train" --real
 check "missing set" 2 "$work/none" -- "$train" --evaluate-builtin --sim-test "$work/none"
+scripts="$(dirname "$0")/../../app/perception/train"
+check "train-model.sh help" 0 "Regenerates the marking classifier" -- sh "$scripts/train-model.sh" --help
+check "train-model.sh no real images" 2 "$work/none/annotations.csv: no such file" -- \
+  sh "$scripts/train-model.sh" "$work/none"
+check "short-cv.sh help" 0 "short cross-validation" -- sh "$scripts/short-cv.sh" --help
 
 "$sim" training-set --out "$work/set" --seed 9002 --frames 6 >/dev/null 2>&1
 check "evaluate builtin" 0 "Simulator test set $work/set \(never trained on\)" -- \

@@ -17,10 +17,19 @@
 # markloop-train trains its default ensemble of 3 networks (seeds 1, 101, 201).
 # Same inputs, same model: every random choice is seeded.
 set -eu
+case "${1:-}" in
+  -h|--help) sed -n '2,/^set -eu/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
+  -*) echo "train-model.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
+esac
 REAL=${1:-../shared/data/roadmarks-honda}
 DATA=build/train-data
 SIM=build/host/sim/markloop-sim
 TRAIN=build/host/app/perception/train/markloop-train
+[ -f "$REAL/annotations.csv" ] ||
+  { echo "train-model.sh: $REAL/annotations.csv: no such file (REAL_DIR: the real images)" >&2; exit 2; }
+for tool in "$SIM" "$TRAIN"; do
+  [ -x "$tool" ] || { echo "train-model.sh: $tool missing: build the host preset first (see --help)" >&2; exit 2; }
+done
 mkdir -p "$DATA"
 # training_set SEED DIR FRAMES [CAMERA]: rendered once, through CAMERA when
 # given (default the simulator's). The simulator writes the calibration it
