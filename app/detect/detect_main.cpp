@@ -131,9 +131,8 @@ int main(int argc, char** argv) {
       whole_only = true;
       continue;
     }
-    if (arg == "--camera" || arg == "--min-score" || arg == "--view") {
-      if (i + 1 >= argc) markloop::cli::fail(arg + ": needs a value (see --help)");
-      const char* value = argv[++i];
+    if (arg.size() > 1 && arg[0] == '-') {
+      const char* value = markloop::cli::option_value(argc, argv, i, {"--camera", "--min-score", "--view"});
       if (arg == "--camera") {
         camera_path = value;
       } else if (arg == "--view") {
@@ -145,7 +144,6 @@ int main(int argc, char** argv) {
       }
       continue;
     }
-    if (arg.size() > 1 && arg[0] == '-') markloop::cli::fail("unknown option " + arg + " (see --help)");
     images.push_back(arg);
   }
   if (camera_path.empty()) markloop::cli::fail("--camera FILE is required (see --help)");
