@@ -27,9 +27,12 @@ for set in sim101 sim102 sim103 sim104 sim105 honda201 honda202 honda203 simtest
   [ -f "$DATA/$set/annotations.csv" ] ||
     { echo "short-cv.sh: $DATA/$set missing: run app/perception/train/train-model.sh first" >&2; exit 2; }
 done
+# shellcheck source=app/perception/train/recipe.sh
+. "$(dirname "$0")/recipe.sh"
+# shellcheck disable=SC2086  # $RECIPE is a list of options
 exec "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml \
   --sim "$DATA/sim101" --sim "$DATA/sim102" --sim "$DATA/sim103" --sim "$DATA/sim104" \
   --sim "$DATA/sim105" --sim "$DATA/honda201" --sim "$DATA/honda202" --sim "$DATA/honda203" \
   --sim-drive-train "$DATA/drive-figure8-21" \
   --sim-test "$DATA/simtest9001" --sim-test "$DATA/hondatest9002" --sim-drive "$DATA/drive-loop-7" \
-  --reject-weight 2.5 --real-weight 2 --hidden 128 --weight-decay 3e-3 --members 1 "$@"
+  $RECIPE --members 1 "$@"

@@ -58,12 +58,10 @@ training_set 9002 "$DATA/hondatest9002" 300 app/cameras/honda.yaml
   "$SIM" drive --scenario figure8 --seed 21 --out "$DATA/drive-figure8-21"
 [ -f "$DATA/drive-loop-7/visible.csv" ] ||
   "$SIM" drive --scenario loop --seed 7 --out "$DATA/drive-loop-7"
-# Weight decay 3e-3 (default 1e-4): with only 13 real clips, the stronger
-# pull to small weights generalises better to a clip held out (4-fold CV by clip).
-# Real weight 2: the real images' samples count double against the simulator's
-# many more (same cross-validation: 78.4 % / 92.8 % against 78.1 % / 92.2 %).
-# shellcheck disable=SC2086  # $sims is a list of options
+# shellcheck source=app/perception/train/recipe.sh
+. "$(dirname "$0")/recipe.sh"
+# shellcheck disable=SC2086  # $sims and $RECIPE are lists of options
 "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $sims \
   --sim-drive-train "$DATA/drive-figure8-21" \
-  --sim-test "$DATA/simtest9001" --sim-test "$DATA/hondatest9002" --sim-drive "$DATA/drive-loop-7" --reject-weight 2.5 --real-weight 2 --hidden 128 --weight-decay 3e-3 \
+  --sim-test "$DATA/simtest9001" --sim-test "$DATA/hondatest9002" --sim-drive "$DATA/drive-loop-7" $RECIPE \
   --out app/perception/model/marking_model.cpp
