@@ -161,9 +161,51 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
       grid[key(cx, cy)].push_back(static_cast<std::uint32_t>(i));
     }
   }
-  const auto is_new = [&](double s) {
+  const auto sample_at = [&](double s) {
     const auto i = static_cast<std::size_t>(std::clamp(s / kStep, 0.0, double(samples - 1)) + 0.5);
-    return revisit[std::min(i, samples - 1)] == 0;
+    return std::min(i, samples - 1);
+  };
+  const auto is_new = [&](double s) { return revisit[sample_at(s)] == 0; };
+
+  // 1b. Which metre of the route lies inside an intersection, where another
+  // stretch of it crosses (heading 45 to 135 degrees off). Real roads paint
+  // no markings there: they would lie across the other road's.
+  std::vector<std::uint8_t> crossing(samples, 0);
+  {
+    const double reach = lanes * w / 2 + 0.6;  // the road's half width, shoulders included
+    const double to_centre = (lanes - 1) * w / 2;  // from the route's lane to the road's middle
+    std::vector<std::array<double, 3>> centres(samples);  // x, y, heading
+    std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
+    const auto cell_of = [&](double v) { return static_cast<std::int64_t>(std::floor(v / reach)); };
+    const auto key = [](std::int64_t cx, std::int64_t cy) { return cx * 73856093LL ^ cy * 19349663LL; };
+    for (std::size_t i = 0; i < samples; ++i) {
+      const Pose2 p = road.at(static_cast<double>(i) * kStep);
+      centres[i] = {p.x - std::sin(p.yaw) * to_centre, p.y + std::cos(p.yaw) * to_centre, p.yaw};
+      grid[key(cell_of(centres[i][0]), cell_of(centres[i][1]))].push_back(static_cast<std::uint32_t>(i));
+    }
+    for (std::size_t i = 0; i < samples; ++i) {
+      const auto& [x, y, yaw] = centres[i];
+      for (std::int64_t dx = -1; dx <= 1 && !crossing[i]; ++dx)
+        for (std::int64_t dy = -1; dy <= 1 && !crossing[i]; ++dy) {
+          const auto it = grid.find(key(cell_of(x) + dx, cell_of(y) + dy));
+          if (it == grid.end()) continue;
+          for (const std::uint32_t j : it->second) {
+            const double apart = std::abs(static_cast<double>(i) - static_cast<double>(j)) * kStep;
+            if (apart < kMinGap || std::hypot(centres[j][0] - x, centres[j][1] - y) >= reach) continue;
+            if (std::abs(std::cos(wrap_angle(centres[j][2] - yaw))) < std::cos(kPi / 4)) {
+              crossing[i] = 1;
+              break;
+            }
+          }
+        }
+    }
+  }
+  // Whether a marking `half_length` either side of s, and a metre more,
+  // stays clear of every intersection.
+  const auto clear_of_crossings = [&](double s, double half_length) {
+    for (std::size_t i = sample_at(s - half_length - 1.0); i <= sample_at(s + half_length + 1.0); ++i)
+      if (crossing[i]) return false;
+    return true;
   };
 
   // 2. Road surface and lines, a metre at a time. On a curve a strip off
@@ -220,6 +262,13 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
         any = true;
         const auto label = static_cast<Label>(pick_class(rng));
         if (!lay) continue;
+        const auto size = marking_size(label, w, lanes);
+        // (The random draws stay as if it were laid: the rows after it are
+        // the same with or without the intersection.)
+        if (!clear_of_crossings(s, size[0] / 2)) {
+          if (label == crosswalk) break;
+          continue;
+        }
         // A crosswalk spans the whole road: it takes the row.
         const double left = label == crosswalk ? (lanes - 1) * w / 2 : lane * w;
         Marking m;
@@ -229,7 +278,6 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
         m.y = centre.y + std::cos(centre.yaw) * left;
         m.heading = centre.yaw;
         m.lane = label == crosswalk ? 0 : lane;
-        const auto size = marking_size(label, w, lanes);
         m.length_m = size[0];
         m.width_m = size[1];
         scenario.markings.push_back(m);

@@ -2,7 +2,8 @@
 // itself. Every pass over a road sees the same markings: the world is laid
 // once along the route's first pass, and a later stretch that runs along an
 // earlier one (within WorldConfig::revisit_radius_m, similar heading) gets no
-// new road, lines or markings of its own.
+// new road, lines or markings of its own. Where the route crosses itself (an
+// intersection) no marking is painted, as on real roads.
 #pragma once
 
 #include <array>

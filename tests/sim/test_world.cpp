@@ -72,6 +72,42 @@ TEST_CASE("the world's roads are laid once per road too") {
   CHECK(world.strips.size() <= one_lap.strips.size() + 20);
 }
 
+TEST_CASE("no marking is painted inside an intersection") {
+  // East along y = 0, round a block, then south along x = 0: the route
+  // crosses itself at right angles at the origin.
+  Path route;
+  const auto line = [&](double x0, double y0, double x1, double y1) {
+    const int steps = static_cast<int>(std::hypot(x1 - x0, y1 - y0) / 0.5);
+    for (int i = 0; i < steps; ++i)
+      route.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
+  };
+  line(-100, 0, 100, 0);
+  line(100, 0, 100, 100);
+  line(100, 100, 0, 100);
+  line(0, 100, 0, -100);
+  WorldConfig config;  // dense rows: without the rule, some would fall on the crossing
+  config.row_spacing_min_m = 4.0;
+  config.row_spacing_max_m = 5.0;
+  config.marking_probability = 1.0;
+  const Scenario world = make_route_scenario("crossing", route, 11, config);
+  // Each road covers from its right edge (lane 0's centre less half a lane
+  // and the shoulder) to its left edge: [-2.35, 5.85] m across, both ways.
+  const double right = -config.lane_width_m / 2 - 0.6;
+  const double left = (config.lanes - 0.5) * config.lane_width_m + 0.6;
+  int near = 0;
+  for (const Marking& m : world.markings) {
+    const bool eastward = std::abs(std::cos(m.heading)) > 0.9;
+    const double along = eastward ? m.x : m.y;  // where it lies along its road
+    const double across = eastward ? m.y : m.x;
+    if (std::abs(across - (right + left) / 2) > (left - right) / 2) continue;  // not by the crossing
+    INFO("marking " << m.id << " at " << m.x << ", " << m.y << ", " << m.length_m << " m long");
+    // Its footprint along its road stays off the other road's width.
+    CHECK((along + m.length_m / 2 < right || along - m.length_m / 2 > left));
+    near += std::abs(along) < 15.0 ? 1 : 0;
+  }
+  CHECK(near >= 2);  // markings up to the intersection, not a road left bare
+}
+
 TEST_CASE("built-in scenarios lay markings of the classifier's classes") {
   for (const std::string& name : scenario_names()) {
     const auto s = make_scenario(name, 2);
