@@ -128,16 +128,16 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   constexpr double kStep = 1.0;
   constexpr double kMinGap = 30.0;  // closer along the route is the same pass
   const auto samples = static_cast<std::size_t>(length / kStep) + 1;
+  std::vector<Pose2> poses(samples);  // the route a metre at a time (here and in 1b)
+  for (std::size_t i = 0; i < samples; ++i) poses[i] = road.at(static_cast<double>(i) * kStep);
   // Cells of a spatial hash of the route's samples (here and in 1b).
   const auto key = [](std::int64_t cx, std::int64_t cy) { return cx * 73856093LL ^ cy * 19349663LL; };
   std::vector<std::uint8_t> revisit(samples, 0);
   {
     const double cell = std::max(config.revisit_radius_m, 1.0);
     std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
-    std::vector<Pose2> poses(samples);
     for (std::size_t i = 0; i < samples; ++i) {
-      const Pose2 p = road.at(static_cast<double>(i) * kStep);
-      poses[i] = p;
+      const Pose2& p = poses[i];
       const auto cx = static_cast<std::int64_t>(std::floor(p.x / cell));
       const auto cy = static_cast<std::int64_t>(std::floor(p.y / cell));
       for (std::int64_t dx = -1; dx <= 1 && !revisit[i]; ++dx)
@@ -179,7 +179,7 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
     std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
     const auto cell_of = [&](double v) { return static_cast<std::int64_t>(std::floor(v / reach)); };
     for (std::size_t i = 0; i < samples; ++i) {
-      const Pose2 p = road.at(static_cast<double>(i) * kStep);
+      const Pose2& p = poses[i];
       centres[i] = {p.x - std::sin(p.yaw) * to_centre, p.y + std::cos(p.yaw) * to_centre, p.yaw};
       grid[key(cell_of(centres[i][0]), cell_of(centres[i][1]))].push_back(static_cast<std::uint32_t>(i));
     }
