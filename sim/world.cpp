@@ -1,7 +1,9 @@
 #include "sim/world.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <unordered_map>
@@ -246,6 +248,22 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   std::discrete_distribution<int> pick_class(weights.begin(), weights.end());
   const Label stopline = *perception::marking_class_from_name("stopline");
   const Label crosswalk = *perception::marking_class_from_name("crosswalk");
+  // The stretch along the route of the last marking laid in each lane. A
+  // marking is not painted over, nor within a metre of, one laid before in
+  // its lane (a crosswalk: in any lane): rows a few metres apart would
+  // otherwise lay 6 m arrows over each other, and a crosswalk over the
+  // row beside it.
+  constexpr double kMarkingGap = 1.0;
+  std::vector<std::array<double, 2>> laid_in_lane(
+      static_cast<std::size_t>(lanes),
+      {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()});
+  const auto clear_of_lanes = [&](int first, int last, double from, double to) {
+    for (int k = first; k <= last; ++k) {
+      const auto& [begin, end] = laid_in_lane[static_cast<std::size_t>(k)];
+      if (to + kMarkingGap > begin && from - kMarkingGap < end) return false;
+    }
+    return true;
+  };
   std::uint32_t next_id = 0;
   for (const RowSegment& segment : segments) {
     std::mt19937_64 rng(segment.seed);
@@ -263,12 +281,17 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
         const auto label = static_cast<Label>(pick_class(rng));
         if (!lay) continue;
         const auto size = marking_size(label, w, lanes);
+        const int first_lane = label == crosswalk ? 0 : lane;
+        const int last_lane = label == crosswalk ? lanes - 1 : lane;
         // (The random draws stay as if it were laid: the rows after it are
-        // the same with or without the intersection.)
-        if (!clear_of_crossings(s, size[0] / 2)) {
+        // the same with or without the intersection or the marking before.)
+        if (!clear_of_crossings(s, size[0] / 2) ||
+            !clear_of_lanes(first_lane, last_lane, s - size[0] / 2, s + size[0] / 2)) {
           if (label == crosswalk) break;
           continue;
         }
+        for (int k = first_lane; k <= last_lane; ++k)
+          laid_in_lane[static_cast<std::size_t>(k)] = {s - size[0] / 2, s + size[0] / 2};
         // A crosswalk spans the whole road: it takes the row.
         const double left = label == crosswalk ? (lanes - 1) * w / 2 : lane * w;
         Marking m;

@@ -3,7 +3,8 @@
 // once along the route's first pass, and a later stretch that runs along an
 // earlier one (within WorldConfig::revisit_radius_m, similar heading) gets no
 // new road, lines or markings of its own. Where the route crosses itself (an
-// intersection) no marking is painted, as on real roads.
+// intersection) no marking is painted, as on real roads; nor over, or
+// within a metre of, another marking in its lane.
 #pragma once
 
 #include <array>

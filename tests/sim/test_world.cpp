@@ -1,4 +1,5 @@
 #include <catch2/catch_test_macros.hpp>
+#include <array>
 
 #include <cmath>
 #include <numbers>
@@ -106,6 +107,37 @@ TEST_CASE("no marking is painted inside an intersection") {
     near += std::abs(along) < 15.0 ? 1 : 0;
   }
   CHECK(near >= 2);  // markings up to the intersection, not a road left bare
+}
+
+TEST_CASE("no marking is painted over or against another") {
+  // A straight road east, rows 4 to 5 m apart with a marking in every lane
+  // and every class as likely: without the rule, arrows 6 m long would lie
+  // over the row before and crosswalks over the markings beside them.
+  Path route;
+  for (int i = 0; i <= 800; ++i) route.add_point(i * 0.5, 0.0);
+  WorldConfig config;
+  config.row_spacing_min_m = 4.0;
+  config.row_spacing_max_m = 5.0;
+  config.marking_probability = 1.0;
+  std::array<double, kClassCount> equal;
+  equal.fill(1.0);
+  config.class_weights = equal;
+  const Scenario world = make_route_scenario("dense", route, 3, config);
+  REQUIRE(world.markings.size() >= 40);  // a road still marked, not left bare
+  int crosswalks = 0;
+  for (std::size_t i = 0; i < world.markings.size(); ++i) {
+    const Marking& a = world.markings[i];
+    crosswalks += marking_class_names()[a.label] == "crosswalk" ? 1 : 0;
+    for (std::size_t j = i + 1; j < world.markings.size(); ++j) {
+      const Marking& b = world.markings[j];
+      const bool side_by_side = std::abs(a.y - b.y) < (a.width_m + b.width_m) / 2;
+      if (!side_by_side) continue;  // in other lanes
+      INFO("markings " << a.id << " and " << b.id << " at x " << a.x << " and " << b.x);
+      // At least a metre of bare road between their ends.
+      CHECK(std::abs(a.x - b.x) - (a.length_m + b.length_m) / 2 >= 1.0 - 1e-9);
+    }
+  }
+  CHECK(crosswalks >= 2);
 }
 
 TEST_CASE("built-in scenarios lay markings of the classifier's classes") {
