@@ -80,10 +80,11 @@ struct DetectorConfig {
   float junction_across_m = 1.5f;
   // Where the paint across is a bar at least junction_long_bar_m long (a
   // stop line, not an arrow's head), the cut reaches junction_cut_margin_m
-  // further along the line: a slanted or blurred edge of the bar would
-  // otherwise join the two again.
+  // further along the line: a slanted, blurred or worn edge of the bar,
+  // whose rows are too broken to be cut themselves, would otherwise join
+  // the two again (a 0.45 m stop line spans about 0.65 m of the view).
   float junction_long_bar_m = 2.5f;
-  float junction_cut_margin_m = 0.15f;
+  float junction_cut_margin_m = 0.3f;
   // Parts whose boxes come closer than this (along, across the road) form one
   // marking; only parts up to group_max_part_m either way are grouped
   // (letters, digits, stripes): arrows are whole already, and lines and

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <numbers>
@@ -208,6 +209,26 @@ TEST_CASE("detector: lane lines are set apart, not classified") {
   detector.detect(frame);
   CHECK(detector.counters().lane_lines >= 2);
   CHECK(detector.candidates().empty());
+}
+
+TEST_CASE("detector: a worn stop line meeting a lane line comes apart from it") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  // The lane's left line, and a stop line 0.45 m along by 3.3 m across
+  // touching it at 10 m. Only its far 0.15 m runs unbroken across; its
+  // near 0.25 m is worn into 0.4 m pieces with 0.12 m gaps, the first one
+  // touching the line: rows too broken to be cut themselves.
+  std::vector<GroundRect> paint{{3.0, 25.0, 1.7, 1.85}, {10.3, 10.45, -1.6, 1.7}};
+  for (double y1 = 1.7; y1 > -1.6; y1 -= 0.52) paint.push_back({10.05, 10.3, std::max(-1.6, y1 - 0.4), y1});
+  detector.detect(render_road(camera, paint));
+  CHECK(detector.counters().lane_lines >= 1);
+  Detection where{};
+  const Candidate* bar = nearest(detector, 10.25, 0.05, where);
+  REQUIRE(bar != nullptr);
+  CHECK(where.ground_x == Catch::Approx(10.25).margin(0.15));
+  CHECK(where.ground_y == Catch::Approx(0.05).margin(0.15));
+  CHECK(bar->length_m < 0.8);  // the bar alone, no piece of the line
+  CHECK(bar->width_m == Catch::Approx(3.3).margin(0.25));
 }
 
 TEST_CASE("detector: a short line at an angle to the road is set apart, and groups with nothing") {
