@@ -219,7 +219,8 @@ TEST_CASE("detector: a worn stop line meeting a lane line comes apart from it") 
   // near 0.25 m is worn into 0.4 m pieces with 0.12 m gaps, the first one
   // touching the line: rows too broken to be cut themselves.
   std::vector<GroundRect> paint{{3.0, 25.0, 1.7, 1.85}, {10.3, 10.45, -1.6, 1.7}};
-  for (double y1 = 1.7; y1 > -1.6; y1 -= 0.52) paint.push_back({10.05, 10.3, std::max(-1.6, y1 - 0.4), y1});
+  for (double y1 = 1.7; y1 > -1.6; y1 -= 0.52)  // from the line rightwards
+    paint.push_back({10.05, 10.3, std::max(-1.6, y1 - 0.4), y1});
   detector.detect(render_road(camera, paint));
   CHECK(detector.counters().lane_lines >= 1);
   Detection where{};

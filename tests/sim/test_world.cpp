@@ -1,6 +1,6 @@
 #include <catch2/catch_test_macros.hpp>
-#include <array>
 
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <set>
