@@ -246,7 +246,6 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   // segments with the same seed look the same (repeated city blocks).
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::discrete_distribution<int> pick_class(weights.begin(), weights.end());
-  const Label stopline = *perception::marking_class_from_name("stopline");
   const Label crosswalk = *perception::marking_class_from_name("crosswalk");
   // The stretch along the route of the last marking laid in each lane. A
   // marking is not painted over, nor within a metre of, one laid before in
@@ -257,10 +256,10 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   std::vector<std::array<double, 2>> laid_in_lane(
       static_cast<std::size_t>(lanes),
       {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()});
-  const auto clear_of_lanes = [&](int first, int last, double from, double to) {
+  const auto clear_of_lanes = [&](int first, int last, const std::array<double, 2>& stretch) {
     for (int k = first; k <= last; ++k) {
       const auto& [begin, end] = laid_in_lane[static_cast<std::size_t>(k)];
-      if (to + kMarkingGap > begin && from - kMarkingGap < end) return false;
+      if (stretch[1] + kMarkingGap > begin && stretch[0] - kMarkingGap < end) return false;
     }
     return true;
   };
@@ -281,17 +280,18 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
         const auto label = static_cast<Label>(pick_class(rng));
         if (!lay) continue;
         const auto size = marking_size(label, w, lanes);
+        const std::array<double, 2> stretch{s - size[0] / 2, s + size[0] / 2};  // along the route
         const int first_lane = label == crosswalk ? 0 : lane;
         const int last_lane = label == crosswalk ? lanes - 1 : lane;
         // (The random draws stay as if it were laid: the rows after it are
         // the same with or without the intersection or the marking before.)
         if (!clear_of_crossings(s, size[0] / 2) ||
-            !clear_of_lanes(first_lane, last_lane, s - size[0] / 2, s + size[0] / 2)) {
+            !clear_of_lanes(first_lane, last_lane, stretch)) {
           if (label == crosswalk) break;
           continue;
         }
         for (int k = first_lane; k <= last_lane; ++k)
-          laid_in_lane[static_cast<std::size_t>(k)] = {s - size[0] / 2, s + size[0] / 2};
+          laid_in_lane[static_cast<std::size_t>(k)] = stretch;
         // A crosswalk spans the whole road: it takes the row.
         const double left = label == crosswalk ? (lanes - 1) * w / 2 : lane * w;
         Marking m;
@@ -305,7 +305,6 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
         m.width_m = size[1];
         scenario.markings.push_back(m);
         if (label == crosswalk) break;
-        (void)stopline;
       }
     }
   }
