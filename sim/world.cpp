@@ -223,6 +223,18 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   };
   constexpr double kLineHalfWidth = 0.075;
   constexpr double kDashPeriod = 12.0, kDashLength = 3.0;  // US practice: 3 m line, 9 m gap
+  // Each line strip's metre of route, for step 3's check against lines of
+  // other stretches of road.
+  struct LinePiece {
+    std::size_t strip;
+    std::size_t sample;
+  };
+  std::vector<LinePiece> line_pieces;
+  const auto line_at = [&](std::size_t i, const Pose2& p, double left, double half_length,
+                           StripKind kind) {
+    line_pieces.push_back({scenario.strips.size(), i});
+    strip_at(p, left, half_length, kLineHalfWidth, kind);
+  };
   for (std::size_t i = 0; i + 1 < samples; ++i) {
     if (revisit[i]) continue;
     const double s = (static_cast<double>(i) + 0.5) * kStep;
@@ -235,11 +247,11 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
                StripKind::kRoad);
     else if (i % 2 == 0 || (i > 0 && revisit[i - 1]))
       strip_at(p, (lanes - 1) * w / 2, half, lanes * w / 2 + 0.6, StripKind::kRoad);
-    strip_at(p, -w / 2 + 0.1, half, kLineHalfWidth, StripKind::kWhiteLine);        // edge
-    strip_at(p, (lanes - 0.5) * w - 0.1, half, kLineHalfWidth, StripKind::kYellowLine);  // centre
+    line_at(i, p, -w / 2 + 0.1, half, StripKind::kWhiteLine);             // edge
+    line_at(i, p, (lanes - 0.5) * w - 0.1, half, StripKind::kYellowLine);  // centre
     if (std::fmod(s, kDashPeriod) < kDashLength)
       for (int k = 0; k + 1 < lanes; ++k)
-        strip_at(p, (k + 0.5) * w, half - 0.05, kLineHalfWidth, StripKind::kWhiteLine);
+        line_at(i, p, (k + 0.5) * w, half - 0.05, StripKind::kWhiteLine);
   }
 
   // 3. Marking rows. Each segment draws its rows from its own generator, so
@@ -263,6 +275,45 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
     }
     return true;
   };
+  // Whether a marking's footprint (centre, heading, half sizes) lies flat
+  // in its lane: the lane straight under it (its centre strays under
+  // kMaxBend from the marking's axis) and no line of another stretch of road
+  // (a corner's arc, a road joining at a shallow angle) within
+  // kLineClearance of it. Real roads paint markings on straight approaches,
+  // not round a corner, where a 6 m arrow's ends stray 0.2 m and more
+  // towards its lane's lines and the corner's arc crosses the next street.
+  constexpr double kMaxBend = 0.1, kLineClearance = 0.3;
+  constexpr double kOwnStretch = 2.0;  // its own lines (a stop line meets one) are judged by the bend
+  const auto lies_flat = [&](double s, double left, const Pose2& at, double half_length,
+                             double half_width) {
+    const double c = std::cos(at.yaw), sn = std::sin(at.yaw);
+    const auto offset = [&](double x, double y) {  // along, across the marking
+      return std::array<double, 2>{(x - at.x) * c + (y - at.y) * sn, -(x - at.x) * sn + (y - at.y) * c};
+    };
+    const std::size_t first = sample_at(s - half_length), last = sample_at(s + half_length);
+    for (std::size_t i = first; i <= last; ++i) {
+      const Pose2& p = poses[i];
+      if (std::abs(offset(p.x - std::sin(p.yaw) * left, p.y + std::cos(p.yaw) * left)[1]) > kMaxBend)
+        return false;
+    }
+    const double margin = kLineClearance + kLineHalfWidth;
+    const auto inside = [&](double x, double y) {
+      const auto [along, across] = offset(x, y);
+      return std::abs(along) <= half_length + margin && std::abs(across) <= half_width + margin;
+    };
+    const double reach = half_length + half_width + margin + kStep;
+    const auto own = static_cast<std::size_t>(kOwnStretch / kStep);
+    for (const LinePiece& piece : line_pieces) {
+      if (piece.sample + own >= first && piece.sample <= last + own) continue;
+      const Strip& line = scenario.strips[piece.strip];
+      if (std::abs(line.x - at.x) > reach || std::abs(line.y - at.y) > reach) continue;
+      const double hx = std::cos(line.heading) * line.half_length;
+      const double hy = std::sin(line.heading) * line.half_length;
+      if (inside(line.x, line.y) || inside(line.x + hx, line.y + hy) || inside(line.x - hx, line.y - hy))
+        return false;
+    }
+    return true;
+  };
   std::uint32_t next_id = 0;
   for (const RowSegment& segment : segments) {
     std::mt19937_64 rng(segment.seed);
@@ -283,23 +334,26 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
         const std::array<double, 2> stretch{s - size[0] / 2, s + size[0] / 2};  // along the route
         const int first_lane = label == crosswalk ? 0 : lane;
         const int last_lane = label == crosswalk ? lanes - 1 : lane;
+        // A crosswalk spans the whole road: it takes the row.
+        const double left = label == crosswalk ? (lanes - 1) * w / 2 : lane * w;
+        const Pose2 at{centre.x - std::sin(centre.yaw) * left, centre.y + std::cos(centre.yaw) * left,
+                       centre.yaw};
         // (The random draws stay as if it were laid: the rows after it are
         // the same with or without the intersection or the marking before.)
         if (!clear_of_crossings(s, size[0] / 2) ||
-            !clear_of_lanes(first_lane, last_lane, stretch)) {
+            !clear_of_lanes(first_lane, last_lane, stretch) ||
+            !lies_flat(s, left, at, size[0] / 2, size[1] / 2)) {
           if (label == crosswalk) break;
           continue;
         }
         for (int k = first_lane; k <= last_lane; ++k)
           laid_in_lane[static_cast<std::size_t>(k)] = stretch;
-        // A crosswalk spans the whole road: it takes the row.
-        const double left = label == crosswalk ? (lanes - 1) * w / 2 : lane * w;
         Marking m;
         m.id = next_id++;
         m.label = label;
-        m.x = centre.x - std::sin(centre.yaw) * left;
-        m.y = centre.y + std::cos(centre.yaw) * left;
-        m.heading = centre.yaw;
+        m.x = at.x;
+        m.y = at.y;
+        m.heading = at.yaw;
         m.lane = label == crosswalk ? 0 : lane;
         m.length_m = size[0];
         m.width_m = size[1];

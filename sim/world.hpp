@@ -4,7 +4,8 @@
 // earlier one (within WorldConfig::revisit_radius_m, similar heading) gets no
 // new road, lines or markings of its own. Where the route crosses itself (an
 // intersection) no marking is painted, as on real roads; nor over, or
-// within a metre of, another marking in its lane.
+// within a metre of, another marking in its lane; nor where the road bends
+// under it or a line of another stretch of road runs across it.
 #pragma once
 
 #include <array>

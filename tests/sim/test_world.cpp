@@ -140,6 +140,65 @@ TEST_CASE("no marking is painted over or against another") {
   CHECK(crosswalks >= 2);
 }
 
+TEST_CASE("no line crosses a marking, on a corner or where another road runs") {
+  // East, round a 12 m corner north, sharply west, then sharply back
+  // south-east across the first street at 30 degrees (too shallow to be an
+  // intersection): rows 4 to 5 m apart with a marking in every lane.
+  // Without the rule, markings laid where the road turns lie across their
+  // own lane's lines, and the slanting road's lines across the first
+  // street's markings (both seen failing).
+  Path route;
+  const auto line = [&](double x0, double y0, double x1, double y1) {
+    const int steps = static_cast<int>(std::hypot(x1 - x0, y1 - y0) / 0.5);
+    for (int i = 0; i < steps; ++i)
+      route.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
+  };
+  line(-200, 0, 0, 0);
+  for (int i = 0; i < 40; ++i) {
+    const double a = -kPi / 2 + kPi / 2 * i / 40.0;
+    route.add_point(12 * std::cos(a), 12 + 12 * std::sin(a));
+  }
+  line(12, 12, 12, 40);
+  line(12, 40, -169.3, 40);
+  line(-169.3, 40, -30.7, -40);  // crosses y = 0 at x = -100
+  WorldConfig config;
+  config.row_spacing_min_m = 4.0;
+  config.row_spacing_max_m = 5.0;
+  config.marking_probability = 1.0;
+  std::array<double, kClassCount> equal;
+  equal.fill(1.0);
+  config.class_weights = equal;
+  const Scenario world = make_route_scenario("corner", route, 5, config);
+  int near_corner = 0, near_slant = 0;
+  for (const Marking& m : world.markings) {
+    // A crosswalk spans the road, over the lines between its lanes.
+    if (marking_class_names()[m.label] == "crosswalk") continue;
+    near_corner += std::hypot(m.x, m.y - 12) < 25.0 ? 1 : 0;
+    near_slant += std::abs(m.y) < 5.0 && std::abs(m.x + 100) < 30.0 ? 1 : 0;
+    const double c = std::cos(m.heading), s = std::sin(m.heading);
+    // Points along each line's middle, inside the footprint less 0.1 m (a
+    // stop line meets the edge line by design).
+    const auto crosses = [&](const Strip& strip) {
+      for (double t = -1.0; t <= 1.0; t += 0.25) {
+        const double x = strip.x + std::cos(strip.heading) * strip.half_length * t - m.x;
+        const double y = strip.y + std::sin(strip.heading) * strip.half_length * t - m.y;
+        const double along = x * c + y * s, across = -x * s + y * c;
+        if (std::abs(along) < m.length_m / 2 - 0.1 && std::abs(across) < m.width_m / 2 - 0.1) return true;
+      }
+      return false;
+    };
+    for (const Strip& strip : world.strips) {
+      if (strip.kind == StripKind::kRoad || !crosses(strip)) continue;
+      FAIL_CHECK("marking " << m.id << " (" << marking_class_names()[m.label] << ") at " << m.x << ", "
+                            << m.y << " crossed by a line at " << strip.x << ", " << strip.y);
+    }
+  }
+  // The straights still marked, up to the corner and the slanting road.
+  CHECK(world.markings.size() >= 60);
+  CHECK(near_corner >= 2);
+  CHECK(near_slant >= 2);
+}
+
 TEST_CASE("built-in scenarios lay markings of the classifier's classes") {
   for (const std::string& name : scenario_names()) {
     const auto s = make_scenario(name, 2);
