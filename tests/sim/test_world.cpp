@@ -30,6 +30,28 @@ Path circle_route(double laps) {
   return p;
 }
 
+// Appends the straight from (x0, y0) towards (x1, y1) in 0.5 m steps.
+void add_straight(Path& route, double x0, double y0, double x1, double y1) {
+  const int steps = static_cast<int>(std::hypot(x1 - x0, y1 - y0) / 0.5);
+  for (int i = 0; i < steps; ++i)
+    route.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
+}
+
+// Rows 4 to 5 m apart with a marking in every lane (every class as likely
+// when `every_class`): dense enough that a rule left out shows.
+WorldConfig dense_rows(bool every_class) {
+  WorldConfig config;
+  config.row_spacing_min_m = 4.0;
+  config.row_spacing_max_m = 5.0;
+  config.marking_probability = 1.0;
+  if (every_class) {
+    std::array<double, kClassCount> equal;
+    equal.fill(1.0);
+    config.class_weights = equal;
+  }
+  return config;
+}
+
 }  // namespace
 
 TEST_CASE("a road driven again gets no second set of markings") {
@@ -77,19 +99,11 @@ TEST_CASE("no marking is painted inside an intersection") {
   // East along y = 0, round a block, then south along x = 0: the route
   // crosses itself at right angles at the origin.
   Path route;
-  const auto line = [&](double x0, double y0, double x1, double y1) {
-    const int steps = static_cast<int>(std::hypot(x1 - x0, y1 - y0) / 0.5);
-    for (int i = 0; i < steps; ++i)
-      route.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
-  };
-  line(-100, 0, 100, 0);
-  line(100, 0, 100, 100);
-  line(100, 100, 0, 100);
-  line(0, 100, 0, -100);
-  WorldConfig config;  // dense rows: without the rule, some would fall on the crossing
-  config.row_spacing_min_m = 4.0;
-  config.row_spacing_max_m = 5.0;
-  config.marking_probability = 1.0;
+  add_straight(route, -100, 0, 100, 0);
+  add_straight(route, 100, 0, 100, 100);
+  add_straight(route, 100, 100, 0, 100);
+  add_straight(route, 0, 100, 0, -100);
+  const WorldConfig config = dense_rows(false);  // without the rule, some would fall on the crossing
   const Scenario world = make_route_scenario("crossing", route, 11, config);
   // Each road covers from its right edge (lane 0's centre less half a lane
   // and the shoulder) to its left edge: [-2.35, 5.85] m across, both ways.
@@ -115,14 +129,7 @@ TEST_CASE("no marking is painted over or against another") {
   // over the row before and crosswalks over the markings beside them.
   Path route;
   for (int i = 0; i <= 800; ++i) route.add_point(i * 0.5, 0.0);
-  WorldConfig config;
-  config.row_spacing_min_m = 4.0;
-  config.row_spacing_max_m = 5.0;
-  config.marking_probability = 1.0;
-  std::array<double, kClassCount> equal;
-  equal.fill(1.0);
-  config.class_weights = equal;
-  const Scenario world = make_route_scenario("dense", route, 3, config);
+  const Scenario world = make_route_scenario("dense", route, 3, dense_rows(true));
   REQUIRE(world.markings.size() >= 40);  // a road still marked, not left bare
   int crosswalks = 0;
   for (std::size_t i = 0; i < world.markings.size(); ++i) {
@@ -143,32 +150,19 @@ TEST_CASE("no marking is painted over or against another") {
 TEST_CASE("no line crosses a marking, on a corner or where another road runs") {
   // East, round a 12 m corner north, sharply west, then sharply back
   // south-east across the first street at 30 degrees (too shallow to be an
-  // intersection): rows 4 to 5 m apart with a marking in every lane.
-  // Without the rule, markings laid where the road turns lie across their
-  // own lane's lines, and the slanting road's lines across the first
-  // street's markings (both seen failing).
+  // intersection), dense rows. Without the rule, markings laid where the
+  // road turns lie across their own lane's lines, and the slanting road's
+  // lines across the first street's markings (both seen failing).
   Path route;
-  const auto line = [&](double x0, double y0, double x1, double y1) {
-    const int steps = static_cast<int>(std::hypot(x1 - x0, y1 - y0) / 0.5);
-    for (int i = 0; i < steps; ++i)
-      route.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
-  };
-  line(-200, 0, 0, 0);
+  add_straight(route, -200, 0, 0, 0);
   for (int i = 0; i < 40; ++i) {
     const double a = -kPi / 2 + kPi / 2 * i / 40.0;
     route.add_point(12 * std::cos(a), 12 + 12 * std::sin(a));
   }
-  line(12, 12, 12, 40);
-  line(12, 40, -169.3, 40);
-  line(-169.3, 40, -30.7, -40);  // crosses y = 0 at x = -100
-  WorldConfig config;
-  config.row_spacing_min_m = 4.0;
-  config.row_spacing_max_m = 5.0;
-  config.marking_probability = 1.0;
-  std::array<double, kClassCount> equal;
-  equal.fill(1.0);
-  config.class_weights = equal;
-  const Scenario world = make_route_scenario("corner", route, 5, config);
+  add_straight(route, 12, 12, 12, 40);
+  add_straight(route, 12, 40, -169.3, 40);
+  add_straight(route, -169.3, 40, -30.7, -40);  // crosses y = 0 at x = -100
+  const Scenario world = make_route_scenario("corner", route, 5, dense_rows(true));
   int near_corner = 0, near_slant = 0;
   for (const Marking& m : world.markings) {
     // A crosswalk spans the road, over the lines between its lanes.
