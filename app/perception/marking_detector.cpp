@@ -634,21 +634,38 @@ void MarkingDetector::group_parts(std::size_t part_count) {
   const int bar_min_cols = static_cast<int>(std::lround(config_.bar_min_width_m / region.y_step_m));
   const int bar_max_rows = static_cast<int>(std::lround(config_.bar_max_length_m / region.x_step_m));
   const int line_cols = static_cast<int>(std::lround(config_.line_max_width_m / region.y_step_m));
-  const auto groupable = [&](const Part& p) {
+  const int stripe_gap_cols = static_cast<int>(std::lround(config_.stripe_gap_across_m / region.y_step_m));
+  const int stripe_min_rows = static_cast<int>(std::lround(config_.stripe_min_length_m / region.x_step_m));
+  const int stripe_max_cols = static_cast<int>(std::lround(config_.stripe_max_width_m / region.y_step_m));
+  constexpr std::uint8_t kGroupable = 1, kStripe = 2;
+  const auto grouping = [&](const Part& p) -> std::uint8_t {
     const bool bar = p.col1 - p.col0 + 1 >= bar_min_cols && p.row1 - p.row0 + 1 <= bar_max_rows;
     // A thin part running out of the view (a lane dash coming into sight,
     // too short yet to be set apart as a line) would make a marking it
     // joins look cut by the edge.
     const bool line_coming_in =
         p.col1 - p.col0 + 1 <= line_cols && (touched_edges(p) & kOtherEdge) != 0;
-    return p.col1 - p.col0 < max_cols && p.row1 - p.row0 < max_rows && !bar && !line_coming_in;
+    if (p.col1 - p.col0 >= max_cols || p.row1 - p.row0 >= max_rows || bar || line_coming_in) return 0;
+    // (A piece of a lane dash is as thin as a line, a stripe wider; a
+    // letter's strokes fill less of its box than a stripe's paint.)
+    const int rows = p.row1 - p.row0 + 1, cols = p.col1 - p.col0 + 1;
+    const bool stripe = rows >= stripe_min_rows && cols > line_cols && cols <= stripe_max_cols &&
+                        static_cast<float>(p.area) >= config_.stripe_min_fill * static_cast<float>(rows * cols);
+    return stripe ? kGroupable | kStripe : kGroupable;
+  };
+  // Two stripes side by side: most of the shorter one's rows shared.
+  const auto stripes_side_by_side = [&](const Part& a, const Part& b) {
+    if (b.col0 > a.col1 + stripe_gap_cols || a.col0 > b.col1 + stripe_gap_cols) return false;
+    const int shared = std::min(a.row1, b.row1) - std::max(a.row0, b.row0) + 1;
+    const int shorter = std::min(a.row1 - a.row0, b.row1 - b.row0) + 1;
+    return static_cast<float>(shared) >= config_.stripe_min_shared * static_cast<float>(shorter);
   };
   std::int32_t* parent = group_parent_.data();
   // Decided once per part: the pairs below would scan a thin part's edge
   // paint once per partner.
   for (std::size_t i = 0; i < part_count; ++i) {
     parent[i] = static_cast<std::int32_t>(i);
-    part_groupable_[i] = groupable(parts_[i]) ? 1 : 0;
+    part_groupable_[i] = grouping(parts_[i]);
   }
   for (std::size_t i = 0; i < part_count; ++i) {
     const Part& a = parts_[i];
@@ -656,9 +673,11 @@ void MarkingDetector::group_parts(std::size_t part_count) {
     for (std::size_t j = i + 1; j < part_count; ++j) {
       const Part& b = parts_[j];
       if (part_groupable_[j] == 0) continue;
-      if (b.col0 > a.col1 + gap_cols || a.col0 > b.col1 + gap_cols) continue;
-      if (b.row0 > a.row1 + gap_rows || a.row0 > b.row1 + gap_rows) continue;
-      unite(parent, static_cast<int>(i), static_cast<int>(j));
+      const bool close = b.col0 <= a.col1 + gap_cols && a.col0 <= b.col1 + gap_cols &&
+                         b.row0 <= a.row1 + gap_rows && a.row0 <= b.row1 + gap_rows;
+      const bool stripes = (part_groupable_[i] & part_groupable_[j] & kStripe) != 0 &&
+                           stripes_side_by_side(a, b);
+      if (close || stripes) unite(parent, static_cast<int>(i), static_cast<int>(j));
     }
   }
   for (std::size_t i = 0; i < part_count; ++i) group_candidate_[i] = -1;

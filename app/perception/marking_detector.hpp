@@ -92,6 +92,17 @@ struct DetectorConfig {
   float group_gap_along_m = 0.6f;
   float group_gap_across_m = 0.35f;
   float group_max_part_m = 3.2f;
+  // A crosswalk's stripes lie further apart across the road than letters
+  // (0.5 m and more): stripes (at least stripe_min_length_m along, at most
+  // stripe_max_width_m across) side by side, sharing stripe_min_shared of
+  // the shorter one's rows, group up to stripe_gap_across_m apart. Alone,
+  // each stripe would be a crosswalk of its own, a landmark a metre from
+  // the next.
+  float stripe_min_length_m = 1.5f;
+  float stripe_max_width_m = 0.8f;
+  float stripe_gap_across_m = 0.8f;
+  float stripe_min_shared = 0.8f;
+  float stripe_min_fill = 0.65f;
   // Bars across the road (stop lines: wide across, short along) are whole
   // markings: grouped, they would swallow lane-line ends and shadow specks.
   float bar_min_width_m = 2.0f;

@@ -232,6 +232,39 @@ TEST_CASE("detector: a worn stop line meeting a lane line comes apart from it") 
   CHECK(bar->width_m == Catch::Approx(3.3).margin(0.25));
 }
 
+TEST_CASE("detector: a crosswalk's stripes are one candidate; two words side by side stay two") {
+  const CameraModel camera = default_camera_model();
+  // Six stripes 3 m along and 0.5 m wide, 0.5 m apart: further apart than
+  // the letters of a word are grouped.
+  std::vector<GroundRect> stripes;
+  for (double y = -3.0; y < 2.9; y += 1.0) stripes.push_back({9.0, 12.0, y, y + 0.5});
+  MarkingDetector crosswalk(camera);
+  crosswalk.detect(render_road(camera, stripes));
+  REQUIRE(crosswalk.candidates().size() == 1);
+  CHECK(crosswalk.candidates()[0].parts == 6);
+  CHECK(crosswalk.candidates()[0].width_m == Catch::Approx(5.5).margin(0.25));
+
+  // Two words in neighbouring lanes, 0.7 m apart: letters 2.4 m along and
+  // 0.6 m across, outlines 0.15 m wide (a letter's strokes fill about half
+  // its box), 0.1 m apart within a word.
+  std::vector<GroundRect> letters;
+  for (const double first : {-2.3, 0.4})
+    for (int k = 0; k < 3; ++k) {
+      const double y0 = first + 0.7 * k, y1 = y0 + 0.6;
+      letters.push_back({9.0, 9.15, y0, y1});
+      letters.push_back({11.25, 11.4, y0, y1});
+      letters.push_back({9.0, 11.4, y0, y0 + 0.15});
+      letters.push_back({9.0, 11.4, y1 - 0.15, y1});
+    }
+  MarkingDetector words(camera);
+  words.detect(render_road(camera, letters));
+  REQUIRE(words.candidates().size() == 2);
+  for (const Candidate& word : words.candidates()) {
+    CHECK(word.parts == 3);
+    CHECK(word.width_m == Catch::Approx(2.0).margin(0.25));
+  }
+}
+
 TEST_CASE("detector: a short line at an angle to the road is set apart, and groups with nothing") {
   const CameraModel camera = default_camera_model();
   MarkingDetector detector(camera);
