@@ -646,11 +646,11 @@ void MarkingDetector::group_parts(std::size_t part_count) {
     const bool line_coming_in =
         p.col1 - p.col0 + 1 <= line_cols && (touched_edges(p) & kOtherEdge) != 0;
     if (p.col1 - p.col0 >= max_cols || p.row1 - p.row0 >= max_rows || bar || line_coming_in) return 0;
-    // (A piece of a lane dash is as thin as a line, a stripe wider; a
-    // letter's strokes fill less of its box than a stripe's paint.)
+    // (A piece of a lane dash is as thin as a line, a stripe wider.)
     const int rows = p.row1 - p.row0 + 1, cols = p.col1 - p.col0 + 1;
+    const float fill = static_cast<float>(p.area) / static_cast<float>(rows * cols);
     const bool stripe = rows >= stripe_min_rows && cols > line_cols && cols <= stripe_max_cols &&
-                        static_cast<float>(p.area) >= config_.stripe_min_fill * static_cast<float>(rows * cols);
+                        fill >= config_.stripe_min_fill;
     return stripe ? kGroupable | kStripe : kGroupable;
   };
   // Two stripes side by side: most of the shorter one's rows shared.

@@ -6,7 +6,8 @@
 //     --> connected regions (run-length union-find), lane lines set apart
 //         (optionally, where they meet places the horizon: horizon.hpp)
 //     --> groups: parts close along and across the road (letters of a word,
-//         digits of a number, crosswalk stripes) become one candidate
+//         digits of a number), and a crosswalk's stripes side by side,
+//         become one candidate
 //     --> features (HOG of the normalised patch, occupancy, size)
 //     --> three small MLPs, probabilities averaged, with an explicit reject class
 //     --> Detection: label, score, quad in the image, centre on the ground.
@@ -93,11 +94,12 @@ struct DetectorConfig {
   float group_gap_across_m = 0.35f;
   float group_max_part_m = 3.2f;
   // A crosswalk's stripes lie further apart across the road than letters
-  // (0.5 m and more): stripes (at least stripe_min_length_m along, at most
-  // stripe_max_width_m across) side by side, sharing stripe_min_shared of
-  // the shorter one's rows, group up to stripe_gap_across_m apart. Alone,
-  // each stripe would be a crosswalk of its own, a landmark a metre from
-  // the next.
+  // (0.5 m and more): stripes (at least stripe_min_length_m along, wider
+  // than a line and at most stripe_max_width_m across, paint filling at
+  // least stripe_min_fill of their box, which a letter's strokes do not)
+  // side by side, sharing stripe_min_shared of the shorter one's rows,
+  // group up to stripe_gap_across_m apart. Alone, each stripe would be a
+  // crosswalk of its own, a metre from the next.
   float stripe_min_length_m = 1.5f;
   float stripe_max_width_m = 0.8f;
   float stripe_gap_across_m = 0.8f;
@@ -288,7 +290,7 @@ class MarkingDetector {
   std::vector<std::int32_t> fill_queue_;    // ... and those still to visit
   std::vector<Part> parts_;                 // kMaxParts
   std::vector<std::int32_t> group_parent_;     // union-find over parts
-  std::vector<std::uint8_t> part_groupable_;   // per part: may join a group
+  std::vector<std::uint8_t> part_groupable_;   // per part: may join a group (bit 1), as a stripe (bit 2)
   std::vector<std::int32_t> group_candidate_;  // group root -> candidate index
   std::array<Candidate, kMaxCandidates> candidates_{};
   std::size_t candidate_count_ = 0;
