@@ -64,6 +64,12 @@ Path rounded_rectangle(double width, double height, double radius) {
   return p;
 }
 
+// The point `left` metres to the left of a pose (to its right when
+// negative), heading as the pose does.
+Pose2 beside(const Pose2& p, double left) {
+  return {p.x - std::sin(p.yaw) * left, p.y + std::cos(p.yaw) * left, p.yaw};
+}
+
 // A closed tour through street corners, with every corner rounded. Returns
 // the arc length where each street's straight part starts (after the
 // corner) and a key naming that street, so markings can be laid per street.
@@ -177,13 +183,12 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   {
     const double reach = lanes * w / 2 + 0.6;  // the road's half width, shoulders included
     const double to_centre = (lanes - 1) * w / 2;  // from the route's lane to the road's middle
-    std::vector<std::array<double, 3>> centres(samples);  // x, y, heading
+    std::vector<Pose2> centres(samples);
     std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
     const auto cell_of = [&](double v) { return static_cast<std::int64_t>(std::floor(v / reach)); };
     for (std::size_t i = 0; i < samples; ++i) {
-      const Pose2& p = poses[i];
-      centres[i] = {p.x - std::sin(p.yaw) * to_centre, p.y + std::cos(p.yaw) * to_centre, p.yaw};
-      grid[key(cell_of(centres[i][0]), cell_of(centres[i][1]))].push_back(static_cast<std::uint32_t>(i));
+      centres[i] = beside(poses[i], to_centre);
+      grid[key(cell_of(centres[i].x), cell_of(centres[i].y))].push_back(static_cast<std::uint32_t>(i));
     }
     for (std::size_t i = 0; i < samples; ++i) {
       const auto& [x, y, yaw] = centres[i];
@@ -193,8 +198,8 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
           if (it == grid.end()) continue;
           for (const std::uint32_t j : it->second) {
             const double apart = std::abs(static_cast<double>(i) - static_cast<double>(j)) * kStep;
-            if (apart < kMinGap || std::hypot(centres[j][0] - x, centres[j][1] - y) >= reach) continue;
-            if (std::abs(std::cos(wrap_angle(centres[j][2] - yaw))) < std::cos(kPi / 4)) {
+            if (apart < kMinGap || std::hypot(centres[j].x - x, centres[j].y - y) >= reach) continue;
+            if (std::abs(std::cos(wrap_angle(centres[j].yaw - yaw))) < std::cos(kPi / 4)) {
               crossing[i] = 1;
               break;
             }
@@ -217,8 +222,8 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   const auto strip_at = [&](const Pose2& p, double left, double half_length, double half_width,
                             StripKind kind) {
     const double stretch = 1.0 + std::abs(curvature) * (std::abs(left) + half_width);
-    scenario.strips.push_back({p.x - std::sin(p.yaw) * left, p.y + std::cos(p.yaw) * left, p.yaw,
-                               static_cast<float>(half_length * stretch),
+    const Pose2 at = beside(p, left);
+    scenario.strips.push_back({at.x, at.y, at.yaw, static_cast<float>(half_length * stretch),
                                static_cast<float>(half_width), kind});
   };
   constexpr double kLineHalfWidth = 0.075;
@@ -292,9 +297,8 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
     };
     const std::size_t first = sample_at(s - half_length), last = sample_at(s + half_length);
     for (std::size_t i = first; i <= last; ++i) {
-      const Pose2& p = poses[i];
-      if (std::abs(offset(p.x - std::sin(p.yaw) * left, p.y + std::cos(p.yaw) * left)[1]) > kMaxBend)
-        return false;
+      const Pose2 lane_centre = beside(poses[i], left);
+      if (std::abs(offset(lane_centre.x, lane_centre.y)[1]) > kMaxBend) return false;
     }
     const double margin = kLineClearance + kLineHalfWidth;
     const auto inside = [&](double x, double y) {
@@ -336,8 +340,7 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
         const int last_lane = label == crosswalk ? lanes - 1 : lane;
         // A crosswalk spans the whole road: it takes the row.
         const double left = label == crosswalk ? (lanes - 1) * w / 2 : lane * w;
-        const Pose2 at{centre.x - std::sin(centre.yaw) * left, centre.y + std::cos(centre.yaw) * left,
-                       centre.yaw};
+        const Pose2 at = beside(centre, left);
         // (The random draws stay as if it were laid: the rows after it are
         // the same with or without the intersection or the marking before.)
         if (!clear_of_crossings(s, size[0] / 2) ||
