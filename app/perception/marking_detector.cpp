@@ -108,6 +108,10 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   integral_.setTo(0);
   valid_integral_.create(rows + 1, cols + 1, CV_32SC1);
   valid_integral_.setTo(0);
+  paint_sum_integral_.create(rows + 1, cols + 1, CV_32SC1);
+  paint_sum_integral_.setTo(0);
+  paint_count_integral_.create(rows + 1, cols + 1, CV_32SC1);
+  paint_count_integral_.setTo(0);
   at_edge_.create(rows, cols, CV_8UC1);
   update_view_masks();
   // The road's horizon straight ahead: where a point 100 km ahead appears.
@@ -438,6 +442,61 @@ void MarkingDetector::threshold() {
     for (int c = 0; c < inner_begin; ++c) decide(c, 0, std::min(cols, c + half_c + 1));
     for (int c = inner_begin; c < inner_end; ++c) decide(c, c - half_c, c + half_c + 1);
     for (int c = inner_end; c < cols; ++c) decide(c, std::max(0, c - half_c), cols);
+  }
+  if (config_.quadrant_min_contrast > 0) veto_one_sided_paint();
+}
+
+void MarkingDetector::veto_one_sided_paint() {
+  const int rows = bev_.rows, cols = bev_.cols;
+  // Integrals of the paint found so far (its values and its count), so that
+  // a quadrant's road is its pixels less its paint: a quadrant that an arrow's
+  // head fills is judged by the road around the head, not by the head.
+  for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* in = bev_.ptr<std::uint8_t>(r);
+    const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
+    const std::int32_t* sum_above = paint_sum_integral_.ptr<std::int32_t>(r);
+    const std::int32_t* count_above = paint_count_integral_.ptr<std::int32_t>(r);
+    std::int32_t* sum_out = paint_sum_integral_.ptr<std::int32_t>(r + 1);
+    std::int32_t* count_out = paint_count_integral_.ptr<std::int32_t>(r + 1);
+    std::int32_t sum_line = 0, count_line = 0;
+    for (int c = 0; c < cols; ++c) {
+      const std::int32_t paint = m[c] != 0;
+      sum_line += paint * in[c];
+      count_line += paint;
+      sum_out[c + 1] = sum_above[c + 1] + sum_line;
+      count_out[c + 1] = count_above[c + 1] + count_line;
+    }
+  }
+  const int half_r = window_rows_ / 2, half_c = window_cols_ / 2;
+  const std::int32_t ratio_q8 =
+      static_cast<std::int32_t>(std::lround(config_.quadrant_min_contrast_ratio * 256.0f));
+  const std::int32_t contrast_q8 = config_.quadrant_min_contrast * 256;
+  // A quadrant with little road (the view's edge, paint) says too little
+  // about the road there to veto anything.
+  const std::int32_t min_count = std::max(1, (half_r + 1) * (half_c + 1) / 4);
+  const auto box = [](const cv::Mat& integral, int r0, int r1, int c0, int c1) {
+    return integral.at<std::int32_t>(r1, c1) - integral.at<std::int32_t>(r1, c0) -
+           integral.at<std::int32_t>(r0, c1) + integral.at<std::int32_t>(r0, c0);
+  };
+  for (int r = 0; r < rows; ++r) {
+    std::uint8_t* out = mask_.ptr<std::uint8_t>(r);
+    const std::uint8_t* in = bev_.ptr<std::uint8_t>(r);
+    const int row_bounds[2][2] = {{std::max(0, r - half_r), r + 1}, {r, std::min(rows, r + half_r + 1)}};
+    for (int c = 0; c < cols; ++c) {
+      if (out[c] == 0) continue;  // most pixels: paint is sparse
+      const int col_bounds[2][2] = {{std::max(0, c - half_c), c + 1}, {c, std::min(cols, c + half_c + 1)}};
+      for (const auto& rb : row_bounds) {
+        for (const auto& cb : col_bounds) {
+          const std::int32_t count = box(valid_integral_, rb[0], rb[1], cb[0], cb[1]) -
+                                     box(paint_count_integral_, rb[0], rb[1], cb[0], cb[1]);
+          if (count < min_count) continue;
+          const std::int32_t sum = box(integral_, rb[0], rb[1], cb[0], cb[1]) -
+                                   box(paint_sum_integral_, rb[0], rb[1], cb[0], cb[1]);
+          const std::int32_t margin = std::max(contrast_q8 * count, ratio_q8 * sum);
+          if (in[c] * count * 256 <= sum * 256 + margin) out[c] = 0;
+        }
+      }
+    }
   }
 }
 

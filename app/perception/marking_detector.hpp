@@ -63,6 +63,15 @@ struct DetectorConfig {
   float local_window_m = 1.6f;
   int min_contrast = 14;
   float min_contrast_ratio = 0.12f;
+  // ...and brighter than the road of each quarter of that window (the four
+  // quadrants meeting at it; a quadrant's road is its pixels less the paint
+  // the window's test found) by quadrant_min_contrast grey levels or
+  // quadrant_min_contrast_ratio of that road's mean. Any edge through a pixel
+  // leaves a whole quadrant on one side of it: sunlit road beside a shadow,
+  // which the window's mean (half shadow) lets through, is as bright as its
+  // sunlit quadrant and is not paint (0: no such test).
+  int quadrant_min_contrast = 7;
+  float quadrant_min_contrast_ratio = 0.06f;
   float min_part_area_m2 = 0.02f;  // smaller specks are noise
   // Thin long parts are lane lines or kerbs: never grouped, never classified.
   // Thin and long in their box or along their own axis (second moments), so
@@ -246,6 +255,7 @@ class MarkingDetector {
   bool encloses_road(int label, const Part& box);
 
   void threshold();
+  void veto_one_sided_paint();
   void cut_line_junctions();
   std::size_t label_parts();
   void group_parts(std::size_t part_count);
@@ -279,6 +289,7 @@ class MarkingDetector {
   cv::Mat mask_;      // CV_8UC1 paint mask
   cv::Mat integral_;        // CV_32SC1 (rows+1) x (cols+1): bird's-eye sums
   cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (for the view's row shift)
+  cv::Mat paint_sum_integral_, paint_count_integral_;  // of the paint the window test found
   cv::Mat at_edge_;         // CV_8UC1: kNearEdge / kOtherEdge where a pixel borders what is not seen
   std::vector<std::int16_t> run_above_;     // paint run length down to each pixel
   std::vector<std::int16_t> run_below_;     // ... and from it downwards

@@ -35,10 +35,11 @@ struct GroundLine {
   }
 };
 
-// The road with paint wherever is_paint(ground point) says.
-template <typename IsPaint>
-cv::Mat render_road_where(const CameraModel& camera, IsPaint is_paint, int road_grey = 70,
-                          int paint_grey = 200) {
+// The road with paint wherever is_paint(ground point) says, and in shadow
+// (road_grey scaled by shadow_factor) wherever in_shadow says.
+template <typename IsPaint, typename InShadow>
+cv::Mat render_road_shaded(const CameraModel& camera, IsPaint is_paint, InShadow in_shadow,
+                           int road_grey = 70, int paint_grey = 200, double shadow_factor = 1.0) {
   cv::Mat image(camera.height(), camera.width(), CV_8UC1);
   for (int v = 0; v < image.rows; ++v) {
     auto* row = image.ptr<std::uint8_t>(v);
@@ -51,11 +52,20 @@ cv::Mat render_road_where(const CameraModel& camera, IsPaint is_paint, int road_
       // Deterministic asphalt texture of +-6 grey levels.
       const std::uint32_t h = (static_cast<std::uint32_t>(u) * 73856093u) ^
                               (static_cast<std::uint32_t>(v) * 19349663u);
-      const int value = is_paint(g) ? paint_grey : road_grey + static_cast<int>(h % 13u) - 6;
+      const int road = in_shadow(g) ? static_cast<int>(road_grey * shadow_factor) : road_grey;
+      const int value = is_paint(g) ? paint_grey : road + static_cast<int>(h % 13u) - 6;
       row[u] = static_cast<std::uint8_t>(value);
     }
   }
   return image;
+}
+
+// The road with paint wherever is_paint(ground point) says.
+template <typename IsPaint>
+cv::Mat render_road_where(const CameraModel& camera, IsPaint is_paint, int road_grey = 70,
+                          int paint_grey = 200) {
+  return render_road_shaded(
+      camera, is_paint, [](const Eigen::Vector2d&) { return false; }, road_grey, paint_grey);
 }
 
 inline cv::Mat render_road(const CameraModel& camera, const std::vector<GroundRect>& paint,

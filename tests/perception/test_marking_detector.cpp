@@ -20,6 +20,7 @@ using namespace markloop::perception;
 using markloop::perception::testing::GroundLine;
 using markloop::perception::testing::GroundRect;
 using markloop::perception::testing::render_road;
+using markloop::perception::testing::render_road_shaded;
 using markloop::perception::testing::render_road_lines;
 
 namespace {
@@ -263,6 +264,57 @@ TEST_CASE("detector: a crosswalk's stripes are one candidate; two words side by 
     CHECK(word.parts == 3);
     CHECK(word.width_m == Catch::Approx(2.0).margin(0.25));
   }
+}
+
+TEST_CASE("detector: sunlit road beside a shadow is not paint; an arrow's solid head still is") {
+  const CameraModel camera = default_camera_model();
+  // An arrow: a 0.3 m shaft 3 m long under a solid 1.2 m x 1.5 m head
+  // (a quadrant of the threshold's window lies wholly inside it).
+  const std::vector<GroundRect> arrow{{8.0, 11.0, -0.15, 0.15}, {11.0, 12.5, -0.6, 0.6}};
+  const auto on_arrow = [&](const Eigen::Vector2d& g) {
+    return std::any_of(arrow.begin(), arrow.end(), [&](const GroundRect& r) { return r.covers(g); });
+  };
+  // A tree's round shadow to the left and a building's to the right, its
+  // edge slanting across the road; the shadowed road is 45 % as bright.
+  const auto in_shadow = [](const Eigen::Vector2d& g) {
+    return std::hypot(g.x() - 10.0, g.y() - 3.0) < 1.5 || g.y() < -2.0 + 0.4 * (g.x() - 10.0);
+  };
+  const cv::Mat frame = render_road_shaded(camera, on_arrow, in_shadow, 130, 230, 0.45);
+  // Paint pixels more than 0.2 m from the arrow: the sunlit rims.
+  const auto paint_off_and_on_arrow = [&](const MarkingDetector& detector) {
+    const BirdsEyeView& view = detector.birdseye();
+    const cv::Mat& mask = detector.paint_mask();
+    std::array<int, 2> counts{};
+    for (int r = 0; r < mask.rows; ++r)
+      for (int c = 0; c < mask.cols; ++c) {
+        if (mask.at<std::uint8_t>(r, c) == 0) continue;
+        const Eigen::Vector2d g(view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c)));
+        const bool near_arrow = std::any_of(arrow.begin(), arrow.end(), [&](const GroundRect& a) {
+          return GroundRect{a.x0 - 0.2, a.x1 + 0.2, a.y0 - 0.2, a.y1 + 0.2}.covers(g);
+        });
+        ++counts[near_arrow ? 1 : 0];
+      }
+    return counts;
+  };
+
+  DetectorConfig window_only;
+  window_only.quadrant_min_contrast = 0;
+  MarkingDetector before(camera, window_only);
+  before.detect(frame);
+  const auto [rims_before, arrow_before] = paint_off_and_on_arrow(before);
+  CHECK(rims_before > 1000);  // the window's test alone: the rims are paint
+
+  MarkingDetector detector(camera);
+  detector.detect(frame);
+  const auto [rims, arrow_paint] = paint_off_and_on_arrow(detector);
+  CHECK(rims == 0);
+  // The head is not eaten away (against each quadrant's whole mean, paint
+  // included, half of the arrow's paint went).
+  CHECK(arrow_paint >= 0.97 * arrow_before);
+  REQUIRE(detector.candidates().size() == 1);
+  const Candidate& found = detector.candidates()[0];
+  CHECK(found.length_m == Catch::Approx(4.5).margin(0.2));
+  CHECK(found.width_m == Catch::Approx(1.2).margin(0.1));
 }
 
 TEST_CASE("detector: a short line at an angle to the road is set apart, and groups with nothing") {
