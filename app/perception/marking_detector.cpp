@@ -532,6 +532,32 @@ void MarkingDetector::cut_line_junctions() {
   // slanted or blurred edge of the bar would otherwise join them again.
   const int long_bar = std::max(
       across, static_cast<int>(std::lround(config_.junction_long_bar_m / config_.region.y_step_m)));
+  // A worn bar beside the run [c, end) of row `m`: the length (long_bar,
+  // across or 0) of a stretch at least min_fill paint starting within
+  // `bridge` of it. Asked only of runs on a line (few per row), and most
+  // of those have road beside them.
+  const bool worn_bars = config_.junction_min_fill > 0.0f;
+  const float min_fill = config_.junction_min_fill;
+  const int bridge = static_cast<int>(std::lround(config_.junction_bridge_m / config_.region.y_step_m));
+  const int worn_along = static_cast<int>(std::lround(config_.junction_worn_along_m / config_.region.x_step_m));
+  const auto worn_bar_beside = [&](int c, int end, const std::uint8_t* m) {
+    const auto filled = [&](int from, int to) {  // [from, to) inside the row
+      int paint = 0;
+      for (int k = from; k < to; ++k) paint += m[k] != 0;
+      return static_cast<float>(paint) >= min_fill * static_cast<float>(to - from);
+    };
+    int right = end;  // the first paint after the run, within the bridge
+    while (right < cols && right - end < bridge && m[right] == 0) ++right;
+    int left = c - 1;  // the last paint before it
+    while (left >= 0 && c - 1 - left < bridge && m[left] == 0) --left;
+    const bool paint_right = right < cols && m[right] != 0;
+    const bool paint_left = left >= 0 && m[left] != 0;
+    for (const int length : {long_bar, across}) {
+      if (paint_right && right + length <= cols && filled(right, right + length)) return length;
+      if (paint_left && left + 1 - length >= 0 && filled(left + 1 - length, left + 1)) return length;
+    }
+    return 0;
+  };
   bool any = false;
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
@@ -545,10 +571,18 @@ void MarkingDetector::cut_line_junctions() {
       }
       int end = c;
       while (end < cols && m[end] != 0) ++end;
-      if (end - c >= across) {
-        const std::int16_t mark = end - c >= long_bar ? -2 : -1;
+      const bool unbroken = end - c >= across;
+      int beside = 0;
+      if (!unbroken && worn_bars) {
+        bool on_line = false;
+        for (int k = c; k < end && !on_line; ++k) on_line = above[k] + below[k] - 1 >= worn_along;
+        if (on_line) beside = worn_bar_beside(c, end, m);
+      }
+      if (unbroken || beside > 0) {
+        const std::int16_t mark = std::max(end - c, beside) >= long_bar ? -2 : -1;
+        const int line_length = unbroken ? along : worn_along;
         for (int k = c; k < end; ++k)
-          if (above[k] + below[k] - 1 >= along) {
+          if (above[k] + below[k] - 1 >= line_length) {
             below[k] = mark;
             any = true;
           }

@@ -95,6 +95,15 @@ struct DetectorConfig {
   // the two again (a 0.45 m stop line spans about 0.65 m of the view).
   float junction_long_bar_m = 2.5f;
   float junction_cut_margin_m = 0.3f;
+  // A worn bar's rows are broken, so none runs unbroken for
+  // junction_across_m: a row of a line at least junction_worn_along_m long
+  // also counts as crossed where the junction_across_m beside it is at
+  // least junction_min_fill paint starting within junction_bridge_m of it
+  // (0: unbroken runs only). Longer than a letter: the tops of a word's
+  // letters side by side fill a row as densely.
+  float junction_min_fill = 0.6f;
+  float junction_bridge_m = 0.1f;
+  float junction_worn_along_m = 3.0f;
   // Parts whose boxes come closer than this (along, across the road) form one
   // marking; only parts up to group_max_part_m either way are grouped
   // (letters, digits, stripes): arrows are whole already, and lines and

@@ -233,6 +233,30 @@ TEST_CASE("detector: a worn stop line meeting a lane line comes apart from it") 
   CHECK(bar->width_m == Catch::Approx(3.3).margin(0.25));
 }
 
+TEST_CASE("detector: a stop line worn through every row comes apart from the lane line it meets") {
+  const CameraModel camera = default_camera_model();
+  // The lane's left line, and a stop line 0.45 m along by 3.3 m across
+  // touching it at 10 m, worn through its whole length into 0.3 m pieces
+  // 0.1 m apart (three quarters paint): no row runs unbroken for the
+  // 1.5 m the cut looks for.
+  std::vector<GroundRect> paint{{3.0, 25.0, 1.7, 1.85}};
+  for (double y1 = 1.7; y1 > -1.6; y1 -= 0.4)  // from the line rightwards
+    paint.push_back({10.0, 10.45, std::max(-1.6, y1 - 0.3), y1});
+  const cv::Mat frame = render_road(camera, paint);
+  const auto bar_alone = [&](const DetectorConfig& config) {
+    MarkingDetector detector(camera, config);
+    detector.detect(frame);
+    Detection where{};
+    const Candidate* bar = nearest(detector, 10.25, 0.05, where);
+    return bar != nullptr && bar->length_m < 0.8 && std::abs(bar->width_m - 3.3) < 0.3 &&
+           std::abs(where.ground_y - 0.05) < 0.15;
+  };
+  DetectorConfig unbroken_runs_only;
+  unbroken_runs_only.junction_min_fill = 0.0f;
+  CHECK_FALSE(bar_alone(unbroken_runs_only));  // joined to the line: set apart with it
+  CHECK(bar_alone(DetectorConfig{}));
+}
+
 TEST_CASE("detector: a crosswalk's stripes are one candidate; two words side by side stay two") {
   const CameraModel camera = default_camera_model();
   // Six stripes 3 m along and 0.5 m wide, 0.5 m apart: further apart than
