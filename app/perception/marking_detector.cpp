@@ -25,6 +25,17 @@ constexpr double kMinHorizonLineM = 1.5;
 constexpr std::uint8_t kNearEdge = 1;
 constexpr std::uint8_t kOtherEdge = 2;
 
+// Whether `value` is brighter than the mean of `count` pixels summing to
+// `sum` by contrast_q8 / 256 grey levels or ratio_q8 / 256 of the mean,
+// whichever is larger; in integers scaled by count and 256 (no division;
+// 255 * 256 * count stays below 2^31 for count < 2^15). Branch-free, so
+// the threshold's loop vectorises.
+inline bool brighter_than_mean(std::int32_t value, std::int32_t sum, std::int32_t count,
+                               std::int32_t contrast_q8, std::int32_t ratio_q8) {
+  const std::int32_t margin = std::max(contrast_q8 * count, ratio_q8 * sum);
+  return value * count * 256 > sum * 256 + margin;
+}
+
 int find_root(std::int32_t* parent, int i) {
   while (parent[i] != i) {
     parent[i] = parent[parent[i]];  // path halving
@@ -412,9 +423,7 @@ void MarkingDetector::threshold() {
     }
   }
   const int half_r = window_rows_ / 2, half_c = window_cols_ / 2;
-  // Paint: value > mean + max(contrast, ratio * mean), in integers scaled by
-  // the window's valid-pixel count and 256 (no division per pixel; window
-  // sums stay below 2^31: 255 * 256 * count, count < 2^15).
+  // Paint: value > mean + max(contrast, ratio * mean).
   const std::int32_t ratio_q8 =
       static_cast<std::int32_t>(std::lround(config_.min_contrast_ratio * 256.0f));
   const std::int32_t contrast_q8 = config_.min_contrast * 256;
@@ -431,9 +440,9 @@ void MarkingDetector::threshold() {
     const auto decide = [&](int c, int c0, int c1) {
       const std::int32_t count = count_bottom[c1] - count_bottom[c0] - count_top[c1] + count_top[c0];
       const std::int32_t sum = sum_bottom[c1] - sum_bottom[c0] - sum_top[c1] + sum_top[c0];
-      const std::int32_t margin = std::max(contrast_q8 * count, ratio_q8 * sum);
       // Bitwise, not short-circuit: no branch, so the loop vectorises.
-      const int paint = static_cast<int>(v[c] != 0) & static_cast<int>(in[c] * count * 256 > sum * 256 + margin);
+      const int paint = static_cast<int>(v[c] != 0) &
+                        static_cast<int>(brighter_than_mean(in[c], sum, count, contrast_q8, ratio_q8));
       out[c] = static_cast<std::uint8_t>(paint * 255);
     };
     // Where the window lies wholly inside the row its bounds are fixed
@@ -492,8 +501,7 @@ void MarkingDetector::veto_one_sided_paint() {
           if (count < min_count) continue;
           const std::int32_t sum = box(integral_, rb[0], rb[1], cb[0], cb[1]) -
                                    box(paint_sum_integral_, rb[0], rb[1], cb[0], cb[1]);
-          const std::int32_t margin = std::max(contrast_q8 * count, ratio_q8 * sum);
-          if (in[c] * count * 256 <= sum * 256 + margin) out[c] = 0;
+          if (!brighter_than_mean(in[c], sum, count, contrast_q8, ratio_q8)) out[c] = 0;
         }
       }
     }
