@@ -9,6 +9,8 @@ source "$(dirname "$0")/../cli_check.sh"
 check "help" 0 "usage: markloop-train" -- "$train" --help
 check "no data" 2 "no training data" -- "$train" --folds 0
 check "bad members" 2 "--members must be 1..4" -- "$train" --sim "$work/none" --members 9
+check "bad weight average" 2 "--weight-average must be at least 0 and below 1" -- \
+  "$train" --sim "$work/none" --weight-average 1
 check "evaluate nothing" 2 "nothing to judge" -- "$train" --evaluate-builtin
 check "evaluate trains nothing" 2 "trains nothing" -- "$train" --evaluate-builtin --sim "$work/none"
 check "unknown option" 2 "unknown option --frobnicate" -- "$train" --frobnicate 1
