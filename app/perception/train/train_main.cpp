@@ -365,8 +365,8 @@ struct TrainOptions {
   float weight_decay = 1e-4f;
   // Decay of the running average of the weights (0: the last step's are
   // kept). The last step's weights land wherever the last batches pushed
-  // them; their average over the last few epochs sits nearer the middle of
-  // the valley and generalises better to a clip held out.
+  // them; their average over the last few epochs sits nearer the bottom of
+  // the valley (app/perception/EXPERIMENTS.md: found more on every test set).
   float weight_average = 0.0f;
 };
 
