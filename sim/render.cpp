@@ -62,6 +62,9 @@ int mip_level(float footprint_m, double texel_m) {
   return std::min(std::ilogb(ratio), 5);
 }
 
+constexpr Label kBikeLabel = 8;
+constexpr int kBikeWord = 1;  // draw_class()'s variant of the bike: the word, not the bicycle
+
 // Template canvas for a marking L long (along) and W wide (across), at
 // `texel` metres per pixel: row 0 is the far end, column 0 the left side.
 struct Canvas {
@@ -113,31 +116,40 @@ cv::Mat road_text(const char* text, const Canvas& canvas) {
   return out;
 }
 
-cv::Mat draw_class(Label label, double length, double width, double texel) {
+cv::Mat draw_class(Label label, int variant, double length, double width, double texel) {
   Canvas c(length, width, texel);
   const double l = length / 2, w = width / 2;
   switch (label) {
     case 0:  // forward
       c.arrow({-l, 0}, {l, 0}, 0.3, 2.2, 0.9);
       break;
-    case 1:  // left turn: shaft on the right, arm and head to the left
-    case 2: {
-      const double m = label == 1 ? 1.0 : -1.0;
-      c.bar({-l, -0.45 * m}, {0.6, -0.45 * m}, 0.3);
-      c.arrow({0.45, -0.45 * m}, {2.6, 0.7 * m}, 0.3, 1.2, 0.9);
+    case 1:  // left turn, as US streets paint it: a shaft on the right that bends at
+    case 2: {  // its far end into an arm across the lane, the head pointing left
+      const double m = label == 1 ? 1.0 : -1.0;  // the arm's side: +1 left
+      const double shaft = -m * (w - 0.35);
+      c.bar({-l, shaft}, {l - 1.0, shaft}, 0.3);
+      c.bar({l - 1.05, shaft}, {l - 0.45, shaft + 0.5 * m}, 0.3);
+      c.arrow({l - 0.5, shaft + 0.45 * m}, {l - 0.45, m * w}, 0.3, 0.7, 0.8);
       break;
     }
-    case 3:  // forward & left
-    case 4: {
-      const double m = label == 3 ? 1.0 : -1.0;
-      c.arrow({-l, -0.45 * m}, {l, -0.45 * m}, 0.3, 2.0, 0.8);
-      c.arrow({-0.6, -0.45 * m}, {1.4, 0.8 * m}, 0.3, 1.1, 0.8);
+    case 3:  // forward & left, as US streets paint it: a short through arrow, and
+    case 4: {  // an arm that leaves its shaft low and bends to the side, its head across
+      const double m = label == 3 ? 1.0 : -1.0;  // the arm's side: +1 left
+      const double shaft = -m * (w - 0.4);
+      c.arrow({-l, shaft}, {l, shaft}, 0.3, 0.8, 0.8);
+      c.bar({-l + 0.3, shaft}, {-l + 0.8, shaft + 0.5 * m}, 0.3);
+      c.arrow({-l + 0.75, shaft + 0.45 * m}, {-l + 0.8, m * w}, 0.3, 0.6, 0.7);
       break;
     }
     case 5: c.image = road_text("STOP", c); break;
     case 6: c.image = road_text("PED", c); break;
     case 7: c.image = road_text("XING", c); break;
-    case 8: {  // bicycle with rider, painted upright to the driver: wheels side by side across the lane
+    case 8: {
+      if (variant == kBikeWord) {  // the word a bike lane carries, as in the real images
+        c.image = road_text("BIKE", c);
+        break;
+      }
+      // bicycle with rider, painted upright to the driver: wheels side by side across the lane
       cv::Mat side(120, 220, CV_8U, cv::Scalar(0));
       const auto aa = cv::LINE_AA;
       cv::circle(side, {50, 80}, 34, cv::Scalar(255), 8, aa);
@@ -324,10 +336,12 @@ void Renderer::build_pixel_table() {
 }
 
 void Renderer::build_templates() {
-  for (std::size_t label = 0; label < kClassCount; ++label) {
-    const auto size = marking_size(static_cast<Label>(label), 3.5, 2);
-    const cv::Mat base = draw_class(static_cast<Label>(label), size[0], size[1], kTexel);
-    Template& t = templates_[label];
+  for (std::size_t index = 0; index < templates_.size(); ++index) {
+    const bool bike_word = index == kBikeWordTemplate;
+    const auto label = static_cast<Label>(bike_word ? kBikeLabel : index);
+    const auto size = marking_size(label, 3.5, 2);
+    const cv::Mat base = draw_class(label, bike_word ? kBikeWord : 0, size[0], size[1], kTexel);
+    Template& t = templates_[index];
     t.levels.resize(kLevels * kLevels);
     for (int kr = 0; kr < kLevels; ++kr)
       for (int kc = 0; kc < kLevels; ++kc) {
@@ -442,7 +456,10 @@ void Renderer::paint_marking(const Pose2& local, const Marking& marking, const P
   cv::Rect box;
   if (!image_box(local, hl, hw, box)) return;
   ++counters_.markings_drawn;
-  const Template& t = templates_[std::min<std::size_t>(marking.label, kClassCount - 1)];
+  const bool bike_word =
+      marking.label == kBikeLabel && unit_from_hash(hash2(marking.id, 0xB1CE, kWearSeed)) < 0.5F;
+  const Template& t =
+      templates_[bike_word ? kBikeWordTemplate : std::min<std::size_t>(marking.label, kClassCount - 1)];
   const auto c = static_cast<float>(std::cos(local.yaw)), s = static_cast<float>(std::sin(local.yaw));
   const auto lx = static_cast<float>(local.x), ly = static_cast<float>(local.y);
   const double pc = std::cos(pose.yaw), ps = std::sin(pose.yaw);

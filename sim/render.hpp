@@ -127,8 +127,10 @@ class Renderer {
   // Per frame.
   std::vector<float> road_, albedo_, light_;
   cv::Mat shaded_;  // CV_32F
-  // Templates per class.
-  std::array<Template, kClassCount> templates_;
+  // Templates: one per class, then the bike lane's word (half the bike
+  // markings, chosen per marking, carry it instead of the bicycle).
+  static constexpr std::size_t kBikeWordTemplate = kClassCount;
+  std::array<Template, kClassCount + 1> templates_;
   // Spatial index of the world: cell -> indices.
   double cell_m_ = 20.0;
   std::unordered_map<std::int64_t, std::vector<std::uint32_t>> strip_cells_, marking_cells_;

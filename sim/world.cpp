@@ -385,17 +385,19 @@ const std::vector<std::string>& marking_class_names() {
 
 std::array<double, 2> marking_size(Label label, double lane_width_m, int lanes) {
   // Length along the lane x width across, metres (US MUTCD / EU practice:
-  // arrows 5-7.5 m, letters 2.4 m tall, stop lines 0.3-0.6 m wide).
+  // a forward arrow 6 m, letters 2.4 m tall, stop lines 0.3-0.6 m wide; the
+  // turn and combined arrows as short and wide as the real images' city
+  // streets paint them).
   switch (label) {
     case 0: return {6.0, 0.9};   // forward
-    case 1: return {6.0, 1.5};   // leftturn
-    case 2: return {6.0, 1.5};   // rightturn
-    case 3: return {6.5, 1.8};   // forward&left
-    case 4: return {6.5, 1.8};   // forward&right
+    case 1: return {2.6, 2.2};   // leftturn (short, as in the real images)
+    case 2: return {2.6, 2.2};   // rightturn
+    case 3: return {2.6, 2.2};   // forward&left (short, as in the real images)
+    case 4: return {2.6, 2.2};   // forward&right
     case 5: return {2.4, 2.8};   // STOP
     case 6: return {2.4, 2.2};   // PED
     case 7: return {2.4, 2.8};   // XING
-    case 8: return {1.5, 1.2};   // bicycle with rider
+    case 8: return {1.8, 1.4};   // bicycle with rider, or the word BIKE
     case 9: return {4.6, 2.6};   // railway crossing X (R either side)
     case 10: case 11: case 12: return {2.4, 1.6};  // 25 35 40
     case 13: return {6.0, 1.0};  // diamond

@@ -10,7 +10,9 @@
 #
 # Options given after REAL_DIR are appended (a later one wins: --seed 2,
 # --weight-decay 1e-3, ...); MARKLOOP_TRAIN_LIST_MISSED=1 and the other
-# diagnostics of markloop-train --help work as there.
+# diagnostics of markloop-train --help work as there. It runs build/train's
+# markloop-train, as train-model.sh does (MARKLOOP_BUILD=build/host: the host
+# preset's).
 set -eu
 case "${1:-}" in
   -h|--help) sed -n '2,/^set -eu/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
@@ -21,8 +23,8 @@ case "${1:-}" in
   *) REAL=$1; shift ;;
 esac
 DATA=build/train-data
-TRAIN=build/host/app/perception/train/markloop-train
-[ -x "$TRAIN" ] || { echo "short-cv.sh: $TRAIN missing: build the host preset first" >&2; exit 2; }
+TRAIN=${MARKLOOP_BUILD:-build/train}/app/perception/train/markloop-train
+[ -x "$TRAIN" ] || { echo "short-cv.sh: $TRAIN missing: build the preset first (see train-model.sh --help)" >&2; exit 2; }
 for set in sim101 sim102 sim103 sim104 sim105 honda201 honda202 honda203 simtest9001 hondatest9002; do
   [ -f "$DATA/$set/annotations.csv" ] ||
     { echo "short-cv.sh: $DATA/$set missing: run app/perception/train/train-model.sh first" >&2; exit 2; }

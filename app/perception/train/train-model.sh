@@ -1,7 +1,10 @@
 #!/bin/sh
 # Regenerates the marking classifier, app/perception/model/marking_model.cpp,
 # and prints its evaluation. Run from the repository root after
-# `cmake --preset host && cmake --build build/host -j2`.
+# `cmake --preset train && cmake --build --preset train -j2` (markloop-train
+# with AVX2 and FMA, x86-64-v3: the model in the repository came from that
+# build; MARKLOOP_BUILD=build/host runs the host preset's build instead, on
+# any x86-64 host, and gives a model that differs in the last bits).
 #
 #   app/perception/train/train-model.sh [REAL_DIR]
 #
@@ -24,12 +27,13 @@ case "${1:-}" in
 esac
 REAL=${1:-../shared/data/roadmarks-honda}
 DATA=build/train-data
-SIM=build/host/sim/markloop-sim
-TRAIN=build/host/app/perception/train/markloop-train
+BUILD=${MARKLOOP_BUILD:-build/train}
+SIM=$BUILD/sim/markloop-sim
+TRAIN=$BUILD/app/perception/train/markloop-train
 [ -f "$REAL/annotations.csv" ] ||
   { echo "train-model.sh: $REAL/annotations.csv: no such file (REAL_DIR: the real images)" >&2; exit 2; }
 for tool in "$SIM" "$TRAIN"; do
-  [ -x "$tool" ] || { echo "train-model.sh: $tool missing: build the host preset first (see --help)" >&2; exit 2; }
+  [ -x "$tool" ] || { echo "train-model.sh: $tool missing: build the preset first (see --help)" >&2; exit 2; }
 done
 mkdir -p "$DATA"
 # training_set SEED DIR FRAMES [CAMERA]: rendered once, through CAMERA when
