@@ -63,7 +63,6 @@ int mip_level(float footprint_m, double texel_m) {
 }
 
 constexpr Label kBikeLabel = 8;
-constexpr int kBikeWord = 1;  // draw_class()'s variant of the bike: the word, not the bicycle
 
 // Template canvas for a marking L long (along) and W wide (across), at
 // `texel` metres per pixel: row 0 is the far end, column 0 the left side.
@@ -116,7 +115,8 @@ cv::Mat road_text(const char* text, const Canvas& canvas) {
   return out;
 }
 
-cv::Mat draw_class(Label label, int variant, double length, double width, double texel) {
+// bike_word: the bike marking drawn as the word BIKE instead of the bicycle.
+cv::Mat draw_class(Label label, bool bike_word, double length, double width, double texel) {
   Canvas c(length, width, texel);
   const double l = length / 2, w = width / 2;
   switch (label) {
@@ -145,7 +145,7 @@ cv::Mat draw_class(Label label, int variant, double length, double width, double
     case 6: c.image = road_text("PED", c); break;
     case 7: c.image = road_text("XING", c); break;
     case 8: {
-      if (variant == kBikeWord) {  // the word a bike lane carries, as in the real images
+      if (bike_word) {  // the word a bike lane carries, as in the real images
         c.image = road_text("BIKE", c);
         break;
       }
@@ -340,7 +340,7 @@ void Renderer::build_templates() {
     const bool bike_word = index == kBikeWordTemplate;
     const auto label = static_cast<Label>(bike_word ? kBikeLabel : index);
     const auto size = marking_size(label, 3.5, 2);
-    const cv::Mat base = draw_class(label, bike_word ? kBikeWord : 0, size[0], size[1], kTexel);
+    const cv::Mat base = draw_class(label, bike_word, size[0], size[1], kTexel);
     Template& t = templates_[index];
     t.levels.resize(kLevels * kLevels);
     for (int kr = 0; kr < kLevels; ++kr)

@@ -1,7 +1,11 @@
 # shellcheck shell=sh
-# The classifier's training options, sourced by train-model.sh (the model
-# in the repository) and short-cv.sh (the screen of the experiment log), so
-# that the two train alike.
+# The classifier's training options and the build that trains, sourced by
+# train-model.sh (the model in the repository) and short-cv.sh (the screen
+# of the experiment log), so that the two train alike.
+# The build: the preset `train` (x86-64-v3); MARKLOOP_BUILD=build/host for
+# the host preset's.
+# shellcheck disable=SC2034  # used by the scripts that source this file
+BUILD=${MARKLOOP_BUILD:-build/train}
 # Weight decay 3e-3 (default 1e-4): with only 13 real clips, the stronger
 # pull to small weights generalises better to a clip held out (4-fold CV by clip).
 # Real weight 2: the real images' samples count double against the simulator's

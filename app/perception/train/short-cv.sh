@@ -23,14 +23,14 @@ case "${1:-}" in
   *) REAL=$1; shift ;;
 esac
 DATA=build/train-data
-TRAIN=${MARKLOOP_BUILD:-build/train}/app/perception/train/markloop-train
+# shellcheck source=app/perception/train/recipe.sh
+. "$(dirname "$0")/recipe.sh"
+TRAIN=$BUILD/app/perception/train/markloop-train
 [ -x "$TRAIN" ] || { echo "short-cv.sh: $TRAIN missing: build the preset first (see train-model.sh --help)" >&2; exit 2; }
 for set in sim101 sim102 sim103 sim104 sim105 honda201 honda202 honda203 simtest9001 hondatest9002; do
   [ -f "$DATA/$set/annotations.csv" ] ||
     { echo "short-cv.sh: $DATA/$set missing: run app/perception/train/train-model.sh first" >&2; exit 2; }
 done
-# shellcheck source=app/perception/train/recipe.sh
-. "$(dirname "$0")/recipe.sh"
 # shellcheck disable=SC2086  # $RECIPE is a list of options
 exec "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml \
   --sim "$DATA/sim101" --sim "$DATA/sim102" --sim "$DATA/sim103" --sim "$DATA/sim104" \

@@ -27,7 +27,8 @@ case "${1:-}" in
 esac
 REAL=${1:-../shared/data/roadmarks-honda}
 DATA=build/train-data
-BUILD=${MARKLOOP_BUILD:-build/train}
+# shellcheck source=app/perception/train/recipe.sh
+. "$(dirname "$0")/recipe.sh"
 SIM=$BUILD/sim/markloop-sim
 TRAIN=$BUILD/app/perception/train/markloop-train
 [ -f "$REAL/annotations.csv" ] ||
@@ -63,8 +64,6 @@ training_set 9002 "$DATA/hondatest9002" 1200 app/cameras/honda.yaml
   "$SIM" drive --scenario figure8 --seed 21 --out "$DATA/drive-figure8-21"
 [ -f "$DATA/drive-loop-7/visible.csv" ] ||
   "$SIM" drive --scenario loop --seed 7 --out "$DATA/drive-loop-7"
-# shellcheck source=app/perception/train/recipe.sh
-. "$(dirname "$0")/recipe.sh"
 # shellcheck disable=SC2086  # $sims and $RECIPE are lists of options
 "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $sims \
   --sim-drive-train "$DATA/drive-figure8-21" \
