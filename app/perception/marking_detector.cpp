@@ -652,7 +652,7 @@ std::size_t MarkingDetector::label_parts() {
         }
         label = next++;
         parent[label] = label;
-        label_box_[label] = Part{c, r, c, r, 0, 0};
+        label_box_[label] = Part{c, r, c, r, 0, 0, false};
         label_moments_[label] = Moments{};
       }
       row[c] = label;
@@ -720,7 +720,8 @@ std::size_t MarkingDetector::label_parts() {
       ++counters_.parts_dropped;
       continue;
     }
-    parts_[count++] = box;
+    parts_[count] = box;
+    parts_[count++].thin = part_axis.width_m <= config_.line_max_width_m;
   }
   counters_.parts += count;
   return count;
@@ -742,10 +743,10 @@ void MarkingDetector::group_parts(std::size_t part_count) {
   const auto grouping = [&](const Part& p) -> std::uint8_t {
     const bool bar = p.col1 - p.col0 + 1 >= bar_min_cols && p.row1 - p.row0 + 1 <= bar_max_rows;
     // A thin part running out of the view (a lane dash coming into sight,
-    // too short yet to be set apart as a line) would make a marking it
-    // joins look cut by the edge.
+    // too short yet to be set apart as a line; on a bend at an angle) would
+    // make a marking it joins look cut by the edge.
     const bool line_coming_in =
-        p.col1 - p.col0 + 1 <= line_cols && (touched_edges(p) & kOtherEdge) != 0;
+        (p.col1 - p.col0 + 1 <= line_cols || p.thin) && (touched_edges(p) & kOtherEdge) != 0;
     if (p.col1 - p.col0 >= max_cols || p.row1 - p.row0 >= max_rows || bar || line_coming_in) return 0;
     // (A piece of a lane dash is as thin as a line, a stripe wider.)
     const int rows = p.row1 - p.row0 + 1, cols = p.col1 - p.col0 + 1;

@@ -246,6 +246,7 @@ class MarkingDetector {
     int col0, row0, col1, row1;
     int area;
     int group;
+    bool thin;  // as thin as a line along its own axis (a dash's piece, seen at any angle)
   };
   // Sums over a provisional label's pixels, for its axis.
   struct Moments {

@@ -22,6 +22,7 @@ using markloop::perception::testing::GroundRect;
 using markloop::perception::testing::render_road;
 using markloop::perception::testing::render_road_shaded;
 using markloop::perception::testing::render_road_lines;
+using markloop::perception::testing::render_road_where;
 
 namespace {
 const std::string kCameras = std::string(MARKLOOP_SOURCE_DIR) + "/app/cameras/";
@@ -527,6 +528,29 @@ TEST_CASE("detector: a lane dash coming into view at the far end does not make a
   REQUIRE(detections.size() == 1);
   CHECK(detections[0].ground_x == Catch::Approx(far - 1.0).margin(0.15));
   CHECK(detections[0].ground_y == Catch::Approx(-0.5).margin(0.1));
+  CHECK(detector.counters().clipped == 1);  // the dash, alone
+}
+
+TEST_CASE("detector: a lane dash coming into view at an angle does not make a marking look cut") {
+  const CameraModel camera = default_camera_model();
+  const SureModel sure(static_cast<int>(*marking_class_from_name("stop")));
+  DetectorConfig config;
+  config.model = &sure.model;
+  const double left = config.region.y_left_m;
+  // A word 0.6 m inside the left side, and beside it a dash at 45 degrees
+  // (a bend) running out of the view's side: its box in view is about
+  // 0.75 m wide, wider than a line's, but it is as thin as one along its
+  // own axis.
+  const GroundRect word{9.0, 10.2, left - 1.4, left - 0.6};
+  const GroundLine dash{9.3, left - 0.45, 12.0, left + 2.25, 0.15};
+  MarkingDetector detector(camera, config);
+  const cv::Mat frame = render_road_where(camera, [&](const Eigen::Vector2d& g) {
+    return word.covers(g) || dash.covers(g);
+  });
+  const auto detections = detector.detect(frame);
+  REQUIRE(detections.size() == 1);
+  CHECK(detections[0].ground_x == Catch::Approx(9.6).margin(0.15));
+  CHECK(detections[0].ground_y == Catch::Approx(left - 1.0).margin(0.1));
   CHECK(detector.counters().clipped == 1);  // the dash, alone
 }
 
