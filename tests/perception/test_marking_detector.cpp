@@ -512,45 +512,42 @@ TEST_CASE("detector: the guard band shows a marking ending at the region's edge 
   CHECK(guarded.birdseye().cols() == unguarded.birdseye().cols() + 2 * 8);
 }
 
-TEST_CASE("detector: a lane dash coming into view at the far end does not make a marking look cut") {
+TEST_CASE("detector: a lane dash coming into view does not make a marking look cut") {
   const CameraModel camera = default_camera_model();
   const SureModel sure(static_cast<int>(*marking_class_from_name("stop")));
   DetectorConfig config;
   config.model = &sure.model;
-  const double far = config.region.x_far_m;
-  // A word ending 0.4 m short of the far end, and beside it, 0.2 m to the
-  // side and 0.2 m beyond it, a dash running on out of the view: within the
-  // grouping gaps, and too short in view to be set apart as a line.
-  const GroundRect word{far - 1.6, far - 0.4, -0.9, -0.1};
-  const GroundRect dash{far - 0.2, far + 3.0, 0.1, 0.25};
+  cv::Mat frame;
+  double word_x = 0.0, word_y = 0.0;  // the word's centre on the ground
+  SECTION("at the far end") {
+    const double far = config.region.x_far_m;
+    // A word ending 0.4 m short of the far end, and beside it, 0.2 m to the
+    // side and 0.2 m beyond it, a dash running on out of the view: within the
+    // grouping gaps, and too short in view to be set apart as a line.
+    const GroundRect word{far - 1.6, far - 0.4, -0.9, -0.1};
+    const GroundRect dash{far - 0.2, far + 3.0, 0.1, 0.25};
+    frame = render_road(camera, {word, dash});
+    word_x = far - 1.0;
+    word_y = -0.5;
+  }
+  SECTION("at an angle, out of the side") {
+    const double left = config.region.y_left_m;
+    // A word 0.6 m inside the left side, and beside it a dash at 45 degrees
+    // (a bend) running out of the view's side: its box in view is about
+    // 0.75 m wide, wider than a line's, but it is as thin as one along its
+    // own axis.
+    const GroundRect word{9.0, 10.2, left - 1.4, left - 0.6};
+    const GroundLine dash{9.3, left - 0.45, 12.0, left + 2.25, 0.15};
+    frame = render_road_where(camera,
+                              [&](const Eigen::Vector2d& g) { return word.covers(g) || dash.covers(g); });
+    word_x = 9.6;
+    word_y = left - 1.0;
+  }
   MarkingDetector detector(camera, config);
-  const auto detections = detector.detect(render_road(camera, {word, dash}));
-  REQUIRE(detections.size() == 1);
-  CHECK(detections[0].ground_x == Catch::Approx(far - 1.0).margin(0.15));
-  CHECK(detections[0].ground_y == Catch::Approx(-0.5).margin(0.1));
-  CHECK(detector.counters().clipped == 1);  // the dash, alone
-}
-
-TEST_CASE("detector: a lane dash coming into view at an angle does not make a marking look cut") {
-  const CameraModel camera = default_camera_model();
-  const SureModel sure(static_cast<int>(*marking_class_from_name("stop")));
-  DetectorConfig config;
-  config.model = &sure.model;
-  const double left = config.region.y_left_m;
-  // A word 0.6 m inside the left side, and beside it a dash at 45 degrees
-  // (a bend) running out of the view's side: its box in view is about
-  // 0.75 m wide, wider than a line's, but it is as thin as one along its
-  // own axis.
-  const GroundRect word{9.0, 10.2, left - 1.4, left - 0.6};
-  const GroundLine dash{9.3, left - 0.45, 12.0, left + 2.25, 0.15};
-  MarkingDetector detector(camera, config);
-  const cv::Mat frame = render_road_where(camera, [&](const Eigen::Vector2d& g) {
-    return word.covers(g) || dash.covers(g);
-  });
   const auto detections = detector.detect(frame);
   REQUIRE(detections.size() == 1);
-  CHECK(detections[0].ground_x == Catch::Approx(9.6).margin(0.15));
-  CHECK(detections[0].ground_y == Catch::Approx(left - 1.0).margin(0.1));
+  CHECK(detections[0].ground_x == Catch::Approx(word_x).margin(0.15));
+  CHECK(detections[0].ground_y == Catch::Approx(word_y).margin(0.1));
   CHECK(detector.counters().clipped == 1);  // the dash, alone
 }
 
