@@ -317,7 +317,8 @@ TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms perio
     timespec next{};
     clock_gettime(CLOCK_MONOTONIC, &next);
     for (int cycle = 0; cycle < kCycles; ++cycle) {
-      next.tv_nsec += std::chrono::nanoseconds(kPeriod).count();
+      // tv_nsec is a long on 32-bit targets; the period is far below a second.
+      next.tv_nsec += static_cast<decltype(next.tv_nsec)>(std::chrono::nanoseconds(kPeriod).count());
       while (next.tv_nsec >= 1'000'000'000) {
         next.tv_nsec -= 1'000'000'000;
         ++next.tv_sec;
