@@ -759,11 +759,7 @@ void print_coverage(const ImageSet& set) {
 
 // The build whose markloop-train gives this model bit for bit: the network's
 // arithmetic follows the compiler's flags (CMakeLists.txt beside this file).
-#if defined(MARKLOOP_TRAIN_ARCH_FLAGS)
-constexpr const char* kBuild = "build/train";
-#else
-constexpr const char* kBuild = "build/host";
-#endif
+constexpr const char* kBuild = MARKLOOP_TRAIN_BUILD_DIR;
 
 void write_model(const std::vector<Mlp>& members, const std::string& path,
                  const std::string& command, std::size_t samples) {
