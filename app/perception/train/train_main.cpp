@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -381,6 +382,17 @@ void flush_subnormals_to_zero() {
 #if defined(__SSE__)
   _mm_setcsr(_mm_getcsr() | 0x8040);  // FTZ (bit 15) and DAZ (bit 6)
 #endif
+}
+
+// Eigen splits a matrix product into blocks sized from the CPU's caches,
+// which it asks the CPU for at run time, and the blocks set the order in
+// which each sum is added up: the same command trained other weights on a
+// machine whose caches Eigen reads otherwise (EXPERIMENTS.md: two cache
+// sizes, two short cross-validations 559 / 618 and 560 / 614). Fixed sizes
+// (a common x86-64 core's) make the arithmetic the build's alone.
+void fix_matrix_product_blocking() {
+  constexpr std::ptrdiff_t kL1 = 32 * 1024, kL2 = 1024 * 1024, kL3 = 32 * 1024 * 1024;
+  Eigen::setCpuCacheSizes(kL1, kL2, kL3);
 }
 
 Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& options) {
@@ -817,6 +829,7 @@ void write_model(const std::vector<Mlp>& members, const std::string& path,
 
 int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-train";
+  fix_matrix_product_blocking();  // before any training thread starts
   std::string real_dir, real_camera, out;
   std::vector<std::string> sim_dirs, sim_test_dirs, sim_drive_dirs, sim_drive_train_dirs;
   int folds = 4;
