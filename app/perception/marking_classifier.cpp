@@ -50,7 +50,124 @@ void add_probabilities(const MlpNet& m, const Features& features,
   for (int k = 0; k < kClassifierOutputs; ++k) sum[k] += logits[k] / total;
 }
 
+// One 3x3 convolution with padding 1 and ReLU: `in` holds `in_channels`
+// planes of (rows + 2) x (cols + 2) with a zero border, `out` gets
+// `out_channels` planes of rows x cols. Innermost along a row: the compiler
+// vectorises it.
+template <int rows, int cols>
+void convolve(const float* in, int in_channels, const float* weights, const float* bias,
+              int out_channels, float* out) {
+  constexpr int padded_cols = cols + 2, padded_plane = (rows + 2) * padded_cols;
+  for (int o = 0; o < out_channels; ++o) {
+    float* plane = out + o * rows * cols;
+    std::fill(plane, plane + rows * cols, bias[o]);
+    for (int i = 0; i < in_channels; ++i) {
+      const float* w = weights + (o * in_channels + i) * 9;
+      const float* source = in + i * padded_plane;
+      for (int ky = 0; ky < 3; ++ky)
+        for (int kx = 0; kx < 3; ++kx) {
+          const float weight = w[ky * 3 + kx];
+          for (int r = 0; r < rows; ++r) {
+            const float* from = source + (r + ky) * padded_cols + kx;
+            float* to = plane + r * cols;
+            for (int c = 0; c < cols; ++c) to[c] += weight * from[c];
+          }
+        }
+    }
+    for (int k = 0; k < rows * cols; ++k) plane[k] = std::max(plane[k], 0.0f);
+  }
+}
+
+// 2x2 max pooling of `channels` planes of rows x cols into planes of
+// (rows / 2 + 2) x (cols / 2 + 2) with a zero border (the next convolution's
+// padding), or without the border when `border` is 0.
+template <int rows, int cols, int border>
+void pool(const float* in, int channels, float* out) {
+  constexpr int out_rows = rows / 2 + 2 * border, out_cols = cols / 2 + 2 * border;
+  std::fill(out, out + channels * out_rows * out_cols, 0.0f);
+  for (int ch = 0; ch < channels; ++ch)
+    for (int r = 0; r < rows / 2; ++r)
+      for (int c = 0; c < cols / 2; ++c) {
+        const float* p = in + ch * rows * cols + 2 * r * cols + 2 * c;
+        out[ch * out_rows * out_cols + (r + border) * out_cols + c + border] =
+            std::max(std::max(p[0], p[1]), std::max(p[cols], p[cols + 1]));
+      }
+}
+
+void cnn_probabilities(const CnnNet& n, const Features& features, const PatchScratch& patch,
+                       CnnScratch& scratch, std::array<float, kClassifierOutputs>& out) {
+  constexpr int rows = kPatchRows, cols = kPatchCols;
+  auto& input = scratch.input;  // zero border: the first convolution's padding
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
+      const int at = (r + 1) * (cols + 2) + c + 1;
+      input[at] = patch.grey[r * cols + c];
+      // As trained: the paint fraction in steps of 1/255.
+      input[(rows + 2) * (cols + 2) + at] =
+          std::round(std::clamp(patch.paint[r * cols + c], 0.0f, 1.0f) * 255.0f) * (1.0f / 255.0f);
+    }
+  convolve<rows, cols>(input.data(), kCnnInputChannels, n.conv1_w, n.conv1_b, kCnnChannels1,
+                       scratch.conv1.data());
+  pool<rows, cols, 1>(scratch.conv1.data(), kCnnChannels1, scratch.pooled1.data());
+  convolve<rows / 2, cols / 2>(scratch.pooled1.data(), kCnnChannels1, n.conv2_w, n.conv2_b,
+                               kCnnChannels2, scratch.conv2.data());
+  pool<rows / 2, cols / 2, 1>(scratch.conv2.data(), kCnnChannels2, scratch.pooled2.data());
+  auto& head = scratch.head;
+  convolve<rows / 4, cols / 4>(scratch.pooled2.data(), kCnnChannels2, n.conv3_w, n.conv3_b,
+                               kCnnChannels3, head.data());
+  for (int i = 0; i < kShapeFeatures; ++i)
+    head[kCnnFlat + i] = (features[kFeatureCount - kShapeFeatures + i] - n.shape_mean[i]) * n.shape_inv_std[i];
+  auto& hidden = scratch.hidden;
+  for (int j = 0; j < kCnnHidden; ++j) {
+    const float* w = n.fc1_w + static_cast<std::size_t>(j) * kCnnHeadInputs;
+    std::array<float, 8> partial{};
+    int i = 0;
+    for (; i + 8 <= kCnnHeadInputs; i += 8)
+      for (int k = 0; k < 8; ++k) partial[k] += w[i + k] * head[i + k];
+    float s = n.fc1_b[j];
+    for (; i < kCnnHeadInputs; ++i) s += w[i] * head[i];
+    for (float p : partial) s += p;
+    hidden[j] = std::max(s, 0.0f);
+  }
+  float best = -1e30f;
+  for (int k = 0; k < kClassifierOutputs; ++k) {
+    const float* w = n.fc2_w + static_cast<std::size_t>(k) * kCnnHidden;
+    float s = n.fc2_b[k];
+    for (int j = 0; j < kCnnHidden; ++j) s += w[j] * hidden[j];
+    out[k] = s;
+    best = std::max(best, s);
+  }
+  float total = 0.0f;
+  for (float& l : out) {
+    l = std::exp(l - best);
+    total += l;
+  }
+  for (float& l : out) l /= total;
+}
+
 }  // namespace
+
+bool cnn_is_usable(const CnnNet& n) {
+  for (const float* p : {n.conv1_w, n.conv1_b, n.conv2_w, n.conv2_b, n.conv3_w, n.conv3_b,
+                         n.shape_mean, n.shape_inv_std, n.fc1_w, n.fc1_b, n.fc2_w, n.fc2_b})
+    if (p == nullptr) return false;
+  return true;
+}
+
+int classify(const MlpModel& model, const CnnNet* cnn, float cnn_share, const Features& features,
+             const PatchScratch& patch, CnnScratch& scratch,
+             std::array<float, kClassifierOutputs>& probabilities) {
+  const int mlp_class = classify(model, features, probabilities);
+  if (cnn == nullptr || cnn_share <= 0.0f) return mlp_class;
+  std::array<float, kClassifierOutputs> from_cnn;
+  cnn_probabilities(*cnn, features, patch, scratch, from_cnn);
+  int best_class = 0;
+  for (int k = 0; k < kClassifierOutputs; ++k) {
+    probabilities[k] = (1.0f - cnn_share) * probabilities[k] + cnn_share * from_cnn[k];
+    if (probabilities[k] > probabilities[best_class]) best_class = k;
+  }
+  return best_class;
+}
 
 bool model_is_usable(const MlpModel& m) {
   if (m.members < 1 || m.members > kMaxMembers) return false;

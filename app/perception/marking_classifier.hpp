@@ -49,4 +49,59 @@ bool model_is_usable(const MlpModel& model);
 int classify(const MlpModel& model, const Features& features,
              std::array<float, kClassifierOutputs>& probabilities);
 
+// A small convolutional network on the candidate's patch itself (the grey
+// levels and paint of PatchScratch, two channels of kPatchRows x kPatchCols)
+// and its size and shape (the last kShapeFeatures features). It learns its
+// own filters where the MLPs see fixed HOG cells: on a clip held out it finds
+// markings the MLPs miss (app/perception/EXPERIMENTS.md). Layout as PyTorch
+// stores it: three 3x3 convolutions (padding 1, ReLU; 2x2 max pooling after
+// the first two), flattened channel by row by column, the standardised
+// shape features appended, then a hidden layer (ReLU) and the outputs.
+inline constexpr int kCnnInputChannels = 2;
+inline constexpr int kCnnChannels1 = 8;
+inline constexpr int kCnnChannels2 = 16;
+inline constexpr int kCnnChannels3 = 32;
+inline constexpr int kCnnFlat = kCnnChannels3 * (kPatchRows / 4) * (kPatchCols / 4);
+inline constexpr int kCnnHeadInputs = kCnnFlat + kShapeFeatures;
+inline constexpr int kCnnHidden = 64;
+
+struct CnnNet {
+  const float* conv1_w = nullptr;  // [kCnnChannels1][kCnnInputChannels][3][3]
+  const float* conv1_b = nullptr;
+  const float* conv2_w = nullptr;  // [kCnnChannels2][kCnnChannels1][3][3]
+  const float* conv2_b = nullptr;
+  const float* conv3_w = nullptr;  // [kCnnChannels3][kCnnChannels2][3][3]
+  const float* conv3_b = nullptr;
+  const float* shape_mean = nullptr;     // [kShapeFeatures]
+  const float* shape_inv_std = nullptr;  // [kShapeFeatures]
+  const float* fc1_w = nullptr;          // [kCnnHidden][kCnnHeadInputs]
+  const float* fc1_b = nullptr;
+  const float* fc2_w = nullptr;  // [kClassifierOutputs][kCnnHidden]
+  const float* fc2_b = nullptr;
+};
+
+// The network's layers, held by the caller (sized at init, not on the stack
+// of the real-time loop: about 44 KB).
+struct CnnScratch {
+  std::array<float, kCnnInputChannels * (kPatchRows + 2) * (kPatchCols + 2)> input{};
+  std::array<float, kCnnChannels1 * kPatchRows * kPatchCols> conv1{};
+  std::array<float, kCnnChannels1 * (kPatchRows / 2 + 2) * (kPatchCols / 2 + 2)> pooled1{};
+  std::array<float, kCnnChannels2 * (kPatchRows / 2) * (kPatchCols / 2)> conv2{};
+  std::array<float, kCnnChannels2 * (kPatchRows / 4 + 2) * (kPatchCols / 4 + 2)> pooled2{};
+  std::array<float, kCnnHeadInputs> head{};
+  std::array<float, kCnnHidden> hidden{};
+};
+
+// The network compiled into the program (model/marking_cnn.cpp).
+const CnnNet& builtin_marking_cnn();
+
+bool cnn_is_usable(const CnnNet& cnn);
+
+// The MLPs' probabilities blended with the network's: (1 - cnn_share) of
+// the one and cnn_share of the other (cnn == nullptr or cnn_share 0: the
+// MLPs alone). Returns the most probable class. No allocation.
+int classify(const MlpModel& model, const CnnNet* cnn, float cnn_share, const Features& features,
+             const PatchScratch& patch, CnnScratch& scratch,
+             std::array<float, kClassifierOutputs>& probabilities);
+
 }  // namespace markloop::perception

@@ -104,7 +104,8 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
     : camera_(camera),
       config_(config),
       birdseye_(camera, with_guard_band(config.region, config.guard_m), config.hidden_below),
-      model_(config.model != nullptr ? config.model : &builtin_marking_model()) {
+      model_(config.model != nullptr ? config.model : &builtin_marking_model()),
+      cnn_(config.cnn != nullptr ? config.cnn : &builtin_marking_cnn()) {
   const int rows = birdseye_.rows(), cols = birdseye_.cols();
   const auto& region = config.region;
   window_cols_ = odd_at_least_3(config.local_window_m / region.y_step_m);
@@ -185,7 +186,7 @@ void MarkingDetector::update_view_masks() {
 
 bool MarkingDetector::usable(const cv::Mat& grey) const {
   return grey.type() == CV_8UC1 && grey.cols == camera_.width() && grey.rows == camera_.height() &&
-         model_is_usable(*model_);
+         model_is_usable(*model_) && cnn_is_usable(*cnn_);
 }
 
 std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
@@ -861,7 +862,8 @@ void MarkingDetector::classify(Candidate& candidate) {
                      candidate.length_m, candidate.width_m, candidate.parts};
   compute_features(bev_, mask_, box, scratch_, candidate.features);
   std::array<float, kClassifierOutputs> probabilities;
-  candidate.predicted = perception::classify(*model_, candidate.features, probabilities);
+  candidate.predicted = perception::classify(*model_, cnn_, config_.cnn_share, candidate.features,
+                                             scratch_, cnn_scratch_, probabilities);
   candidate.score = probabilities[candidate.predicted];
 }
 

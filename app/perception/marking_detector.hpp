@@ -30,11 +30,10 @@
 #include "perception/birdseye.hpp"
 #include "perception/camera_model.hpp"
 #include "perception/horizon.hpp"
+#include "perception/marking_classifier.hpp"
 #include "perception/marking_features.hpp"
 
 namespace markloop::perception {
-
-struct MlpModel;
 
 struct Detection {
   Label label;                               // index into kMarkingClassNames
@@ -157,6 +156,10 @@ struct DetectorConfig {
   bool hidden_below_follows_horizon = false;
   // Classifier weights; nullptr: the model compiled in (model/marking_model.cpp).
   const MlpModel* model = nullptr;
+  // The convolutional network blended in (marking_classifier.hpp); nullptr:
+  // the one compiled in (model/marking_cnn.cpp). cnn_share 0: MLPs alone.
+  const CnnNet* cnn = nullptr;
+  float cnn_share = 0.5f;
 };
 
 // Reads the optional detector_* keys of a calibration file (OpenCV YAML), so
@@ -292,6 +295,7 @@ class MarkingDetector {
   DetectorConfig config_;
   BirdsEyeView birdseye_;
   const MlpModel* model_;
+  const CnnNet* cnn_;
   int window_cols_ = 1, window_rows_ = 1;
   int min_part_area_px_ = 1;
 
@@ -318,6 +322,7 @@ class MarkingDetector {
   std::array<Detection, kMaxDetections> detections_{};
   std::size_t detection_count_ = 0;
   PatchScratch scratch_;
+  CnnScratch cnn_scratch_;
   // Lane lines of the last frame, the longest kMaxHorizonSegments.
   std::array<ImageSegment, kMaxHorizonSegments> lane_segments_{};
   std::array<float, kMaxHorizonSegments> lane_lengths_{};

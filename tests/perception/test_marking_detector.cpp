@@ -427,6 +427,7 @@ TEST_CASE("detector: a still reports a marking cut by the near edge, marked part
   REQUIRE(model_is_usable(sure.model));
   DetectorConfig config;
   config.model = &sure.model;
+  config.cnn_share = 0.0f;  // the sure model alone
   MarkingDetector detector(camera, config);
   const double near = config.region.x_near_m, far = config.region.x_far_m;
   const double left = config.region.y_left_m;
@@ -476,6 +477,7 @@ TEST_CASE("detector: the guard band shows a marking ending at the region's edge 
   const SureModel sure(static_cast<int>(*marking_class_from_name("forward")));
   DetectorConfig config;
   config.model = &sure.model;
+  config.cnn_share = 0.0f;  // the sure model alone
   const double far = config.region.x_far_m, left = config.region.y_left_m;
   const std::vector<GroundRect> blocks = {
       {far - 2.42, far - 0.02, -0.9, -0.3},    // ends 2 cm inside the far end
@@ -517,6 +519,7 @@ TEST_CASE("detector: a lane dash coming into view does not make a marking look c
   const SureModel sure(static_cast<int>(*marking_class_from_name("stop")));
   DetectorConfig config;
   config.model = &sure.model;
+  config.cnn_share = 0.0f;  // the sure model alone
   cv::Mat frame;
   double word_x = 0.0, word_y = 0.0;  // the word's centre on the ground
   SECTION("at the far end") {

@@ -1,6 +1,8 @@
 #!/bin/sh
-# Regenerates the marking classifier, app/perception/model/marking_model.cpp,
-# and prints its evaluation. Run from the repository root after
+# Regenerates the marking classifier, app/perception/model/marking_model.cpp
+# (the MLPs, markloop-train) and app/perception/model/marking_cnn.cpp (the
+# convolutional network, train_cnn.py: needs python3-torch), and prints
+# their evaluation, then the blend's (the detector's). Run from the repository root after
 # `cmake --preset train && cmake --build --preset train -j2` (markloop-train
 # with AVX2 and FMA, x86-64-v3: the model in the repository came from that
 # build; MARKLOOP_BUILD=build/host runs the host preset's build instead, on
@@ -18,8 +20,11 @@
 # evaluation only, the training-set seeds 9001 (simulator's camera) and 9002
 # (real camera), 1,200 images each (one seed's 300 moved recall in range by
 # 1.5 points either way), and a drive of the `loop` scenario with seed 7.
-# markloop-train trains its default ensemble of 3 networks (seeds 1, 101, 201).
-# Same inputs, same model: every random choice is seeded.
+# markloop-train trains its default ensemble of 3 networks (seeds 1, 101, 201)
+# and writes the candidates to build/train-data/candidates; train_cnn.py
+# trains the network on them, its cross-validation folds two at a time (one
+# thread each), the final one on two threads. Same inputs, same model: every
+# random choice is seeded.
 set -eu
 case "${1:-}" in
   -h|--help) sed -n '2,/^set -eu/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
@@ -36,6 +41,9 @@ TRAIN=$BUILD/app/perception/train/markloop-train
 for tool in "$SIM" "$TRAIN"; do
   [ -x "$tool" ] || { echo "train-model.sh: $tool missing: build the preset first (see --help)" >&2; exit 2; }
 done
+PYTHON=${PYTHON:-/usr/bin/python3}
+"$PYTHON" -c "import torch, numpy" 2>/dev/null ||
+  { echo "train-model.sh: $PYTHON cannot import torch and numpy: apt-get install python3-torch" >&2; exit 2; }
 mkdir -p "$DATA"
 # training_set SEED DIR FRAMES [CAMERA]: rendered once, through CAMERA when
 # given (default the simulator's). The simulator writes the calibration it
@@ -64,8 +72,18 @@ training_set 9002 "$DATA/hondatest9002" 1200 app/cameras/honda.yaml
   "$SIM" drive --scenario figure8 --seed 21 --out "$DATA/drive-figure8-21"
 [ -f "$DATA/drive-loop-7/visible.csv" ] ||
   "$SIM" drive --scenario loop --seed 7 --out "$DATA/drive-loop-7"
-# shellcheck disable=SC2086  # $sims and $RECIPE are lists of options
+TESTS="--sim-test $DATA/simtest9001 --sim-test $DATA/hondatest9002 --sim-drive $DATA/drive-loop-7"
+DUMP=$DATA/candidates
+# shellcheck disable=SC2086  # $sims, $TESTS and $RECIPE are lists of options
 "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $sims \
-  --sim-drive-train "$DATA/drive-figure8-21" \
-  --sim-test "$DATA/simtest9001" --sim-test "$DATA/hondatest9002" --sim-drive "$DATA/drive-loop-7" $RECIPE \
-  --out app/perception/model/marking_model.cpp
+  --sim-drive-train "$DATA/drive-figure8-21" $TESTS $RECIPE \
+  --out app/perception/model/marking_model.cpp --dump "$DUMP"
+CNN="$PYTHON app/perception/train/train_cnn.py $DUMP"
+rm -f "$DUMP"/cnn/*.probs.f32
+$CNN --folds 0,1 & first=$!
+$CNN --folds 2,3 & second=$!
+wait $first && wait $second
+$CNN --folds all --threads 2 --out app/perception/model/marking_cnn.cpp
+echo "The MLPs blended half and half with the network (as the detector classifies):"
+# shellcheck disable=SC2086
+"$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $TESTS --scores "$DUMP/mlp" --scores "$DUMP/cnn"

@@ -15,6 +15,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -49,7 +51,9 @@ constexpr const char* kUsage =
     "usage: markloop-train --real DIR --real-camera FILE [--sim DIR]... [--sim-drive-train DIR]...\n"
     "                      [--sim-test DIR]... [--sim-drive DIR]...\n"
     "                      [--folds N] [--seed N] [--members N] [--epochs N] [--hidden N]\n"
-    "                      [--out FILE.cpp]\n"
+    "                      [--out FILE.cpp] [--dump DIR]\n"
+    "       markloop-train --real DIR --real-camera FILE [--sim-test DIR]... [--sim-drive DIR]...\n"
+    "                      --scores DIR [--scores DIR]...\n"
     "       markloop-train --evaluate-builtin [--real DIR --real-camera FILE]\n"
     "                      [--sim-test DIR]... [--sim-drive DIR]...\n"
     "\n"
@@ -80,7 +84,15 @@ constexpr const char* kUsage =
     "                      (at least 9/(10+step)), so it spans the last 1/(1-D) steps or the\n"
     "                      last tenth of training, whichever is fewer (default 0: off)\n"
     "  --out FILE.cpp      write the model trained on all training data\n"
-    "  --evaluate-builtin  train nothing: judge the model compiled into this program on\n"
+    "  --dump DIR          also write every candidate (patch, features, label, fold) for\n"
+    "                      train_cnn.py, and the MLPs' probabilities: the real images' from\n"
+    "                      the cross-validation, the test sets' from the final model (DIR/mlp/)\n"
+    "  --scores DIR        train nothing: judge the probabilities in DIR (DIR/train0.probs.f32:\n"
+    "                      the real images' cross-validation, DIR/testK.probs.f32: the K-th\n"
+    "                      test set), averaged over every --scores given; the sets must be\n"
+    "                      given as to the run that wrote them\n"
+    "  --evaluate-builtin  train nothing: judge the model compiled into this program (the\n"
+    "                      MLPs blended with the network, as the detector classifies) on\n"
     "                      the sets given (real images: a training fit, not a validation)\n"
     "\n"
     "Diagnostics, set in the environment:\n"
@@ -107,7 +119,15 @@ struct Sample {
   bool beyond_region;           // centred in the view's guard band: trained on, not reported
   std::array<float, 2> centre;  // quad centre in the image, pixels
   std::array<int, 4> box;       // bird's-eye box: col0, row0, col1, row1
+  std::array<float, kPatchCols * kPatchRows> grey{};        // the patch the features came from
+  std::array<std::uint8_t, kPatchCols * kPatchRows> paint{};
 };
+
+void keep_patch(const PatchScratch& scratch, Sample& s) {
+  s.grey = scratch.grey;
+  for (std::size_t i = 0; i < s.paint.size(); ++i)
+    s.paint[i] = static_cast<std::uint8_t>(std::lround(std::clamp(scratch.paint[i], 0.0f, 1.0f) * 255.0f));
+}
 
 constexpr int kJitters = 6;
 constexpr int kRotations = 2;
@@ -147,9 +167,12 @@ void add_rotated(const MarkingDetector& detector, const Candidate& c, const Samp
     copy.augmented = true;
     PatchScratch scratch;
     compute_features(bev_r, mask_r, patch, scratch, copy.features);
+    keep_patch(scratch, copy);
     out.push_back(copy);
   }
 }
+
+int g_patch_mismatches = 0;  // candidates whose features the patch kept does not give
 
 struct ImageSet {
   std::string dir;
@@ -267,6 +290,15 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       s.partial = c.clipped_near_only && config.report_partial_in_stills;
       s.beyond_region = detector.beyond_region(c);
       s.box = {c.col0, c.row0, c.col1, c.row1};
+      {
+        PatchScratch scratch;
+        Features again;
+        compute_features(detector.birdseye_image(), detector.paint_mask(),
+                         PatchBox{c.col0, c.row0, c.col1, c.row1, c.length_m, c.width_m, c.parts},
+                         scratch, again);
+        keep_patch(scratch, s);
+        if (again != c.features) ++g_patch_mismatches;
+      }
       for (const auto& a : image.annotations) {
         if (!inside(a.quad, s.centre[0], s.centre[1])) continue;
         const auto label = marking_class_from_name(a.label);
@@ -301,6 +333,7 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
           copy.label = label;
           PatchScratch scratch;
           compute_features(bev, mask, box, scratch, copy.features);
+          keep_patch(scratch, copy);
           set.samples.push_back(copy);
         }
       };
@@ -692,8 +725,11 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
 
 // Classifies the candidates of the images in use once, then judges them at
 // each score threshold: scores[t] gets the judgement at min_scores[t].
-void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool>& use_image,
-              std::span<const float> min_scores, std::span<Score> scores) {
+using ClassifySample = std::function<int(const Sample&, std::array<float, kClassifierOutputs>&)>;
+
+void evaluate(const ImageSet& set, const ClassifySample& classify_sample,
+              const std::vector<bool>& use_image, std::span<const float> min_scores,
+              std::span<Score> scores) {
   std::vector<std::vector<const Sample*>> per_image(set.images.size());
   for (const Sample& s : set.samples)
     if (!s.augmented) per_image[s.image].push_back(&s);
@@ -704,7 +740,7 @@ void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool
     if (!use_image[i]) continue;
     for (const Sample* s : per_image[i]) {
       std::array<float, kClassifierOutputs> p;
-      const int c = classify(model, s->features, p);
+      const int c = classify_sample(*s, p);
       predicted[i].push_back(c);
       confidence[i].push_back(p[c]);
     }
@@ -730,10 +766,22 @@ void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool
               confidence[i], scores[t]);
 }
 
-void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool>& use_image,
-              float min_score, Score& score) {
-  evaluate(set, model, use_image, std::span(&min_score, 1), std::span(&score, 1));
+ClassifySample by_model(const MlpModel& model) {
+  return [&model](const Sample& s, std::array<float, kClassifierOutputs>& p) {
+    return classify(model, s.features, p);
+  };
 }
+
+void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool>& use_image,
+              std::span<const float> min_scores, std::span<Score> scores) {
+  evaluate(set, by_model(model), use_image, min_scores, scores);
+}
+
+void evaluate(const ImageSet& set, const ClassifySample& classify_sample,
+              const std::vector<bool>& use_image, float min_score, Score& score) {
+  evaluate(set, classify_sample, use_image, std::span(&min_score, 1), std::span(&score, 1));
+}
+
 
 // The dataset holds every other 60-frame block: number the clips present in
 // order, and deal them out to the folds in turn.
@@ -741,6 +789,74 @@ std::vector<int> g_clips;
 int fold_of(int clip, int folds) {
   const auto it = std::lower_bound(g_clips.begin(), g_clips.end(), clip);
   return static_cast<int>(it - g_clips.begin()) % folds;
+}
+
+// --dump: every sample of a set as raw arrays for train_cnn.py,
+// PREFIX.meta.i32 (label, image, clip, fold, real, augmented,
+// clipped | partial << 1 | beyond_region << 2, 0), PREFIX.features.f32,
+// PREFIX.grey.f32 and PREFIX.paint.u8 (the patch); class probabilities come
+// back as PREFIX.probs.f32 (kClassifierOutputs per sample) for --scores.
+template <typename T>
+void write_raw(const std::string& path, const std::vector<T>& values) {
+  std::ofstream file(path, std::ios::binary);
+  file.write(reinterpret_cast<const char*>(values.data()),
+             static_cast<std::streamsize>(values.size() * sizeof(T)));
+  if (!file) fail(path + ": cannot write");
+}
+
+void dump_set(const ImageSet& set, const std::string& prefix, int folds) {
+  std::vector<std::int32_t> meta;
+  std::vector<float> features, grey;
+  std::vector<std::uint8_t> paint;
+  for (const Sample& s : set.samples) {
+    meta.insert(meta.end(), {s.label, s.image, s.clip, s.real ? fold_of(s.clip, folds) : -1,
+                             s.real ? 1 : 0, s.augmented ? 1 : 0,
+                             (s.clipped ? 1 : 0) | (s.partial ? 2 : 0) | (s.beyond_region ? 4 : 0), 0});
+    features.insert(features.end(), s.features.begin(), s.features.end());
+    grey.insert(grey.end(), s.grey.begin(), s.grey.end());
+    paint.insert(paint.end(), s.paint.begin(), s.paint.end());
+  }
+  write_raw(prefix + ".meta.i32", meta);
+  write_raw(prefix + ".features.f32", features);
+  write_raw(prefix + ".grey.f32", grey);
+  write_raw(prefix + ".paint.u8", paint);
+}
+
+void read_probabilities(const ImageSet& set, const std::string& path, std::vector<float>& out) {
+  std::ifstream file(path, std::ios::binary | std::ios::ate);
+  if (!file) fail(path + ": cannot read");
+  const auto bytes = static_cast<std::size_t>(file.tellg());
+  const std::size_t expected = set.samples.size() * kClassifierOutputs * sizeof(float);
+  if (bytes != expected)
+    fail(path + ": " + std::to_string(bytes) + " bytes, expected " + std::to_string(expected) +
+         " (" + std::to_string(set.samples.size()) + " candidates of " + set.dir + ")");
+  out.resize(bytes / sizeof(float));
+  file.seekg(0);
+  file.read(reinterpret_cast<char*>(out.data()), static_cast<std::streamsize>(bytes));
+  if (!file) fail(path + ": cannot read");
+}
+
+// Per sample of `set`, kClassifierOutputs probabilities in `values`.
+ClassifySample by_probabilities(const ImageSet& set, const std::vector<float>& values) {
+  return [&set, &values](const Sample& s, std::array<float, kClassifierOutputs>& p) {
+    const auto index = static_cast<std::size_t>(&s - set.samples.data());
+    std::copy_n(values.begin() + static_cast<std::ptrdiff_t>(index * kClassifierOutputs),
+                kClassifierOutputs, p.begin());
+    return static_cast<int>(std::max_element(p.begin(), p.end()) - p.begin());
+  };
+}
+
+// The probabilities of every sample of `set` by `classify_sample` (zero
+// where `wanted` is false), written for --scores.
+void write_probabilities(const ImageSet& set, const ClassifySample& classify_sample,
+                         const std::function<bool(const Sample&)>& wanted, std::vector<float>& out) {
+  out.resize(set.samples.size() * kClassifierOutputs, 0.0f);
+  for (std::size_t i = 0; i < set.samples.size(); ++i) {
+    if (!wanted(set.samples[i])) continue;
+    std::array<float, kClassifierOutputs> p;
+    classify_sample(set.samples[i], p);
+    std::copy(p.begin(), p.end(), out.begin() + static_cast<std::ptrdiff_t>(i * kClassifierOutputs));
+  }
 }
 
 // How many annotated markings have at least one candidate on them: the
@@ -830,7 +946,8 @@ void write_model(const std::vector<Mlp>& members, const std::string& path,
 int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-train";
   fix_matrix_product_blocking();  // before any training thread starts
-  std::string real_dir, real_camera, out;
+  std::string real_dir, real_camera, out, dump_dir;
+  std::vector<std::string> scores_dirs;
   std::vector<std::string> sim_dirs, sim_test_dirs, sim_drive_dirs, sim_drive_train_dirs;
   int folds = 4;
   TrainOptions options;
@@ -850,7 +967,7 @@ int main(int argc, char** argv) {
         argc, argv, i,
         {"--real", "--real-camera", "--sim", "--sim-test", "--sim-drive", "--sim-drive-train", "--folds",
          "--seed", "--epochs", "--members", "--hidden", "--real-weight", "--reject-weight",
-         "--weight-decay", "--weight-average", "--out"});
+         "--weight-decay", "--weight-average", "--out", "--dump", "--scores"});
     command += " " + arg + " " + value;
     if (arg == "--real")
       real_dir = value;
@@ -884,8 +1001,15 @@ int main(int argc, char** argv) {
       options.weight_average = static_cast<float>(markloop::cli::parse_number(arg, value));
     else if (arg == "--out")
       out = value;
+    else if (arg == "--dump")
+      dump_dir = value;
+    else if (arg == "--scores")
+      scores_dirs.emplace_back(value);
   }
-  if (evaluate_builtin && (!sim_dirs.empty() || !sim_drive_train_dirs.empty() || !out.empty()))
+  if (!scores_dirs.empty() && (evaluate_builtin || !dump_dir.empty() || !out.empty()))
+    fail("--scores judges given probabilities: not with --evaluate-builtin, --dump or --out");
+  if (evaluate_builtin && (!sim_dirs.empty() || !sim_drive_train_dirs.empty() || !out.empty() ||
+                           !dump_dir.empty()))
     fail("--evaluate-builtin trains nothing: give only --real, --real-camera, --sim-test and --sim-drive");
   if (evaluate_builtin && real_dir.empty() && sim_test_dirs.empty() && sim_drive_dirs.empty())
     fail("--evaluate-builtin: nothing to judge: give --real, --sim-test or --sim-drive");
@@ -919,13 +1043,13 @@ int main(int argc, char** argv) {
 
   const float min_score = DetectorConfig{}.min_score;
   // The real images judged by a model trained on them: a fit, not a validation.
-  const auto judge_real_fit = [&](const MlpModel& model, const char* title) {
+  const auto judge_real_fit = [&](const ClassifySample& model, const char* title) {
     const ImageSet& real = sets.front();
     Score fit;
     evaluate(real, model, std::vector<bool>(real.images.size(), true), min_score, fit);
     print_score(title, fit, true);
   };
-  const auto judge_tests = [&](const MlpModel& model) {
+  const auto judge_tests = [&](const ClassifySample& model) {
     for (const auto& test : tests) {
       print_coverage(test);
       Score score;
@@ -933,8 +1057,63 @@ int main(int argc, char** argv) {
       print_score(("Simulator test set " + test.dir + " (never trained on):").c_str(), score, false);
     }
   };
+  // --dump DIR: the candidates for train_cnn.py, and the MLPs' probabilities
+  // (DIR/mlp/) for the blend judged with --scores.
+  if (!dump_dir.empty()) {
+    std::filesystem::create_directories(dump_dir + "/mlp");
+    std::ofstream index(dump_dir + "/sets.txt");
+    for (std::size_t k = 0; k < sets.size(); ++k) {
+      dump_set(sets[k], dump_dir + "/train" + std::to_string(k), folds);
+      index << "train" << k << ' ' << sets[k].dir << ' ' << sets[k].samples.size() << '\n';
+    }
+    for (std::size_t k = 0; k < tests.size(); ++k) {
+      dump_set(tests[k], dump_dir + "/test" + std::to_string(k), folds);
+      index << "test" << k << ' ' << tests[k].dir << ' ' << tests[k].samples.size() << '\n';
+    }
+    if (!index) fail(dump_dir + "/sets.txt: cannot write");
+  }
+  if (!scores_dirs.empty()) {
+    // The probabilities written by --dump (MLPs) and train_cnn.py, averaged.
+    const auto judge_with = [&](const ImageSet& set, const std::string& name,
+                                std::span<const float> thresholds, std::span<Score> by_threshold) {
+      std::vector<float> mean, storage;
+      for (const auto& dir : scores_dirs) {
+        read_probabilities(set, dir + "/" + name + ".probs.f32", storage);
+        if (mean.empty()) mean.assign(storage.size(), 0.0f);
+        for (std::size_t i = 0; i < storage.size(); ++i)
+          mean[i] += storage[i] / static_cast<float>(scores_dirs.size());
+      }
+      evaluate(set, by_probabilities(set, mean), std::vector<bool>(set.images.size(), true),
+               thresholds, by_threshold);
+    };
+    if (!real_dir.empty()) {
+      const std::vector<float> thresholds = {min_score, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
+      std::vector<Score> by_threshold(thresholds.size());
+      print_coverage(sets.front());
+      judge_with(sets.front(), "train0", thresholds, by_threshold);
+      print_score("Real images, cross-validation by clip, the probabilities given averaged:",
+                  by_threshold.front(), true);
+      print_operating_points(std::span(thresholds).subspan(1), std::span(by_threshold).subspan(1));
+    }
+    for (std::size_t k = 0; k < tests.size(); ++k) {
+      Score score;
+      print_coverage(tests[k]);
+      judge_with(tests[k], "test" + std::to_string(k), std::span(&min_score, 1), std::span(&score, 1));
+      print_score(("Simulator test set " + tests[k].dir + ", the probabilities given averaged:").c_str(),
+                  score, false);
+    }
+    return 0;
+  }
   if (evaluate_builtin) {
-    const MlpModel& model = builtin_marking_model();
+    // As the detector classifies: the MLPs blended with the network.
+    const ClassifySample model = [](const Sample& s, std::array<float, kClassifierOutputs>& p) {
+      PatchScratch patch;
+      patch.grey = s.grey;
+      for (std::size_t i = 0; i < patch.paint.size(); ++i) patch.paint[i] = s.paint[i] * (1.0f / 255.0f);
+      CnnScratch scratch;
+      return classify(builtin_marking_model(), &builtin_marking_cnn(), DetectorConfig{}.cnn_share,
+                      s.features, patch, scratch, p);
+    };
     if (!real_dir.empty()) {
       print_coverage(sets.front());
       judge_real_fit(model, "Real images, the built-in model (trained on them: a fit, not a validation):");
@@ -959,6 +1138,7 @@ int main(int argc, char** argv) {
     // The default threshold first (the full table), then the operating points.
     const std::vector<float> thresholds = {min_score, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
     std::vector<Score> by_threshold(thresholds.size());
+    std::vector<float> cv_probabilities;  // each real candidate's, by the model that held it out
     for (int fold = 0; fold < folds; ++fold) {
       const auto data = training(fold);
       const std::vector<Mlp> members = train_members(data, options);
@@ -966,6 +1146,15 @@ int main(int argc, char** argv) {
       for (std::size_t i = 0; i < real.images.size(); ++i)
         use[i] = fold_of(train::clip_of(real.images[i].name), folds) == fold;
       evaluate(real, view(members), use, thresholds, by_threshold);
+      if (!dump_dir.empty()) {
+        std::vector<float> fold_probabilities;
+        write_probabilities(
+            real, by_model(view(members)),
+            [&](const Sample& s) { return !s.augmented && fold_of(s.clip, folds) == fold; },
+            fold_probabilities);
+        if (cv_probabilities.empty()) cv_probabilities.assign(fold_probabilities.size(), 0.0f);
+        for (std::size_t i = 0; i < fold_probabilities.size(); ++i) cv_probabilities[i] += fold_probabilities[i];
+      }
       std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
     }
     char title[160];
@@ -975,13 +1164,20 @@ int main(int argc, char** argv) {
                   folds);
     print_score(title, by_threshold.front(), true);
     print_operating_points(std::span(thresholds).subspan(1), std::span(by_threshold).subspan(1));
+    if (!dump_dir.empty()) write_raw(dump_dir + "/mlp/train0.probs.f32", cv_probabilities);
   }
 
   const auto data = training(-1);
   const std::vector<Mlp> members = train_members(data, options);
   if (std::getenv("MARKLOOP_TRAIN_SHOW_FIT") != nullptr && !real_dir.empty())
-    judge_real_fit(view(members), "Real images, training fit (not a validation):");
-  judge_tests(view(members));
+    judge_real_fit(by_model(view(members)), "Real images, training fit (not a validation):");
+  judge_tests(by_model(view(members)));
+  for (std::size_t k = 0; k < tests.size() && !dump_dir.empty(); ++k) {
+    std::vector<float> test_probabilities;
+    write_probabilities(tests[k], by_model(view(members)), [](const Sample&) { return true; },
+                        test_probabilities);
+    write_raw(dump_dir + "/mlp/test" + std::to_string(k) + ".probs.f32", test_probabilities);
+  }
   if (!out.empty()) {
     write_model(members, out, command, data.size());
     std::printf("\nwrote %s (%zu training candidates)\n", out.c_str(), data.size());

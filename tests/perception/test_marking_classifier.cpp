@@ -1,0 +1,144 @@
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <catch2/catch_approx.hpp>
+#include <catch2/catch_test_macros.hpp>
+
+#include "perception/marking_classifier.hpp"
+
+using namespace markloop::perception;
+
+namespace {
+
+// The network of marking_classifier.hpp written the plain way: a tensor per
+// layer, bounds checked instead of padded, as PyTorch defines the layers.
+struct Tensor {
+  int channels, rows, cols;
+  std::vector<float> v;
+  Tensor(int ch, int r, int c) : channels(ch), rows(r), cols(c), v(static_cast<std::size_t>(ch * r * c), 0.0f) {}
+  float& at(int ch, int r, int c) { return v[static_cast<std::size_t>((ch * rows + r) * cols + c)]; }
+  float get(int ch, int r, int c) const {
+    if (r < 0 || r >= rows || c < 0 || c >= cols) return 0.0f;
+    return v[static_cast<std::size_t>((ch * rows + r) * cols + c)];
+  }
+};
+
+Tensor conv_relu(const Tensor& in, const std::vector<float>& w, const std::vector<float>& b, int out_channels) {
+  Tensor out(out_channels, in.rows, in.cols);
+  for (int o = 0; o < out_channels; ++o)
+    for (int r = 0; r < in.rows; ++r)
+      for (int c = 0; c < in.cols; ++c) {
+        double s = b[static_cast<std::size_t>(o)];
+        for (int i = 0; i < in.channels; ++i)
+          for (int ky = -1; ky <= 1; ++ky)
+            for (int kx = -1; kx <= 1; ++kx)
+              s += w[static_cast<std::size_t>(((o * in.channels + i) * 3 + ky + 1) * 3 + kx + 1)] *
+                   in.get(i, r + ky, c + kx);
+        out.at(o, r, c) = static_cast<float>(std::max(s, 0.0));
+      }
+  return out;
+}
+
+Tensor max_pool(const Tensor& in) {
+  Tensor out(in.channels, in.rows / 2, in.cols / 2);
+  for (int ch = 0; ch < in.channels; ++ch)
+    for (int r = 0; r < out.rows; ++r)
+      for (int c = 0; c < out.cols; ++c)
+        out.at(ch, r, c) = std::max({in.get(ch, 2 * r, 2 * c), in.get(ch, 2 * r, 2 * c + 1),
+                                     in.get(ch, 2 * r + 1, 2 * c), in.get(ch, 2 * r + 1, 2 * c + 1)});
+  return out;
+}
+
+std::vector<float> random_values(std::mt19937& rng, int n, float scale) {
+  std::uniform_real_distribution<float> u(-scale, scale);
+  std::vector<float> v(static_cast<std::size_t>(n));
+  for (float& x : v) x = u(rng);
+  return v;
+}
+
+}  // namespace
+
+TEST_CASE("the network's probabilities are those of its layers written out plainly") {
+  std::mt19937 rng(7);
+  const auto conv1_w = random_values(rng, kCnnChannels1 * kCnnInputChannels * 9, 0.5f);
+  const auto conv1_b = random_values(rng, kCnnChannels1, 0.1f);
+  const auto conv2_w = random_values(rng, kCnnChannels2 * kCnnChannels1 * 9, 0.3f);
+  const auto conv2_b = random_values(rng, kCnnChannels2, 0.1f);
+  const auto conv3_w = random_values(rng, kCnnChannels3 * kCnnChannels2 * 9, 0.2f);
+  const auto conv3_b = random_values(rng, kCnnChannels3, 0.1f);
+  const auto shape_mean = random_values(rng, kShapeFeatures, 1.0f);
+  std::vector<float> shape_inv_std(kShapeFeatures, 0.7f);
+  const auto fc1_w = random_values(rng, kCnnHidden * kCnnHeadInputs, 0.05f);
+  const auto fc1_b = random_values(rng, kCnnHidden, 0.1f);
+  const auto fc2_w = random_values(rng, kClassifierOutputs * kCnnHidden, 0.3f);
+  const auto fc2_b = random_values(rng, kClassifierOutputs, 0.1f);
+  const CnnNet net{conv1_w.data(), conv1_b.data(), conv2_w.data(),    conv2_b.data(),
+                   conv3_w.data(), conv3_b.data(), shape_mean.data(), shape_inv_std.data(),
+                   fc1_w.data(),   fc1_b.data(),   fc2_w.data(),      fc2_b.data()};
+  REQUIRE(cnn_is_usable(net));
+  REQUIRE_FALSE(cnn_is_usable(CnnNet{}));
+
+  PatchScratch patch;
+  std::normal_distribution<float> grey(0.0f, 1.0f);
+  std::uniform_int_distribution<int> paint(0, 255);
+  for (float& g : patch.grey) g = grey(rng);
+  for (float& p : patch.paint) p = static_cast<float>(paint(rng)) / 255.0f;
+  Features features{};
+  for (float& f : features) f = grey(rng);
+
+  // The reference.
+  Tensor input(kCnnInputChannels, kPatchRows, kPatchCols);
+  for (int r = 0; r < kPatchRows; ++r)
+    for (int c = 0; c < kPatchCols; ++c) {
+      input.at(0, r, c) = patch.grey[static_cast<std::size_t>(r * kPatchCols + c)];
+      input.at(1, r, c) = patch.paint[static_cast<std::size_t>(r * kPatchCols + c)];
+    }
+  const Tensor layer3 = conv_relu(
+      max_pool(conv_relu(max_pool(conv_relu(input, conv1_w, conv1_b, kCnnChannels1)), conv2_w, conv2_b,
+                         kCnnChannels2)),
+      conv3_w, conv3_b, kCnnChannels3);
+  std::vector<double> head(layer3.v.begin(), layer3.v.end());
+  for (int i = 0; i < kShapeFeatures; ++i)
+    head.push_back((features[static_cast<std::size_t>(kFeatureCount - kShapeFeatures + i)] -
+                    shape_mean[static_cast<std::size_t>(i)]) * shape_inv_std[static_cast<std::size_t>(i)]);
+  REQUIRE(head.size() == static_cast<std::size_t>(kCnnHeadInputs));
+  std::vector<double> hidden(kCnnHidden), logits(kClassifierOutputs);
+  for (int j = 0; j < kCnnHidden; ++j) {
+    double s = fc1_b[static_cast<std::size_t>(j)];
+    for (int i = 0; i < kCnnHeadInputs; ++i)
+      s += fc1_w[static_cast<std::size_t>(j * kCnnHeadInputs + i)] * head[static_cast<std::size_t>(i)];
+    hidden[static_cast<std::size_t>(j)] = std::max(s, 0.0);
+  }
+  double total = 0.0;
+  for (int k = 0; k < kClassifierOutputs; ++k) {
+    double s = fc2_b[static_cast<std::size_t>(k)];
+    for (int j = 0; j < kCnnHidden; ++j)
+      s += fc2_w[static_cast<std::size_t>(k * kCnnHidden + j)] * hidden[static_cast<std::size_t>(j)];
+    logits[static_cast<std::size_t>(k)] = std::exp(s);
+    total += logits[static_cast<std::size_t>(k)];
+  }
+
+  // The network alone (share 1), then blended half and half with the MLPs.
+  std::array<float, kClassifierOutputs> from_net, from_mlps, blended;
+  CnnScratch scratch;
+  const int best = classify(builtin_marking_model(), &net, 1.0f, features, patch, scratch, from_net);
+  int expected_best = 0;
+  for (int k = 0; k < kClassifierOutputs; ++k) {
+    CHECK(from_net[static_cast<std::size_t>(k)] ==
+          Catch::Approx(logits[static_cast<std::size_t>(k)] / total).margin(1e-5));
+    if (logits[static_cast<std::size_t>(k)] > logits[static_cast<std::size_t>(expected_best)]) expected_best = k;
+  }
+  CHECK(best == expected_best);
+  classify(builtin_marking_model(), features, from_mlps);
+  classify(builtin_marking_model(), &net, 0.5f, features, patch, scratch, blended);
+  for (int k = 0; k < kClassifierOutputs; ++k)
+    CHECK(blended[static_cast<std::size_t>(k)] ==
+          Catch::Approx(0.5f * from_net[static_cast<std::size_t>(k)] + 0.5f * from_mlps[static_cast<std::size_t>(k)])
+              .margin(1e-6));
+  // No network, or share 0: the MLPs alone.
+  classify(builtin_marking_model(), nullptr, 0.5f, features, patch, scratch, blended);
+  CHECK(blended == from_mlps);
+}
