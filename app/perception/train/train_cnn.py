@@ -180,7 +180,10 @@ def main():
     real_count = parts[0][0].shape[0]  # train0: the real images (markloop-train's first set)
     labels, fold = meta[:, 0], meta[:, 3]
     real, augmented = meta[:, 4] == 1, meta[:, 5] == 1
-    print(f"{meta.shape[0]} candidates, {real_count} of them real", flush=True)
+    if not real[:real_count].any() and any(f != "all" for f in args.folds.split(",")):
+        sys.exit(f"train_cnn.py: {train_names[0]} holds no real images (markloop-train without --real): "
+                 "no folds to hold out, only --folds all")
+    print(f"{int(real.sum())} of {meta.shape[0]} candidates real", flush=True)
 
     for name in args.folds.split(","):
         held_out = -1 if name == "all" else int(name)
@@ -215,7 +218,7 @@ def main():
             print(f"wrote {args.out}", flush=True)
     folds = sorted(set(fold[:real_count][real[:real_count]].tolist()))
     fold_files = [os.path.join(out_dir, f"train0.fold{f}.probs.f32") for f in folds]
-    if all(os.path.isfile(f) for f in fold_files):
+    if fold_files and all(os.path.isfile(f) for f in fold_files):
         sum(np.fromfile(f, dtype=np.float32) for f in fold_files).astype(np.float32).tofile(
             os.path.join(out_dir, "train0.probs.f32"))
 

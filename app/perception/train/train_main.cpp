@@ -782,7 +782,6 @@ void evaluate(const ImageSet& set, const ClassifySample& classify_sample,
   evaluate(set, classify_sample, use_image, std::span(&min_score, 1), std::span(&score, 1));
 }
 
-
 // The dataset holds every other 60-frame block: number the clips present in
 // order, and deal them out to the folds in turn.
 std::vector<int> g_clips;
@@ -1071,6 +1070,9 @@ int main(int argc, char** argv) {
       index << "test" << k << ' ' << tests[k].dir << ' ' << tests[k].samples.size() << '\n';
     }
     if (!index) fail(dump_dir + "/sets.txt: cannot write");
+    // The patches written must be those the detector classified.
+    if (g_patch_mismatches > 0)
+      fail(std::to_string(g_patch_mismatches) + " candidates' patches do not give their features");
   }
   if (!scores_dirs.empty()) {
     // The probabilities written by --dump (MLPs) and train_cnn.py, averaged.
