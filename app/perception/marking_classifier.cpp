@@ -13,6 +13,36 @@ bool net_is_usable(const MlpNet& m) {
          m.w1 != nullptr && m.b1 != nullptr && m.w2 != nullptr && m.b2 != nullptr;
 }
 
+// ReLU(W x + b) for `outputs` rows of `inputs` weights each.
+void dense_relu(const float* weights, const float* bias, const float* x, int inputs, int outputs,
+                float* out) {
+  for (int j = 0; j < outputs; ++j) {
+    const float* w = weights + static_cast<std::size_t>(j) * inputs;
+    // Eight independent partial sums: the compiler can keep them in one
+    // vector register (a single running sum would serialise every add).
+    std::array<float, 8> partial{};
+    int i = 0;
+    for (; i + 8 <= inputs; i += 8)
+      for (int k = 0; k < 8; ++k) partial[k] += w[i + k] * x[i + k];
+    float s = bias[j];
+    for (; i < inputs; ++i) s += w[i] * x[i];
+    for (float p : partial) s += p;
+    out[j] = std::max(s, 0.0f);
+  }
+}
+
+// The class probabilities: softmax of W x + b, `inputs` weights per class.
+void dense_softmax(const float* weights, const float* bias, const float* x, int inputs,
+                   std::array<float, kClassifierOutputs>& out) {
+  for (int k = 0; k < kClassifierOutputs; ++k) {
+    const float* w = weights + static_cast<std::size_t>(k) * inputs;
+    float s = bias[k];
+    for (int j = 0; j < inputs; ++j) s += w[j] * x[j];
+    out[k] = s;
+  }
+  softmax_in_place(out);
+}
+
 // Adds one network's class probabilities to `sum`.
 void add_probabilities(const MlpNet& m, const Features& features,
                        std::array<float, kClassifierOutputs>& sum) {
@@ -20,34 +50,10 @@ void add_probabilities(const MlpNet& m, const Features& features,
   for (int i = 0; i < kFeatureCount; ++i)
     x[i] = (features[i] - m.feature_mean[i]) * m.feature_inv_std[i];
   std::array<float, kMaxHidden> h;
-  for (int j = 0; j < m.hidden; ++j) {
-    const float* w = m.w1 + static_cast<std::size_t>(j) * kFeatureCount;
-    // Eight independent partial sums: the compiler can keep them in one
-    // vector register (a single running sum would serialise every add).
-    std::array<float, 8> partial{};
-    int i = 0;
-    for (; i + 8 <= kFeatureCount; i += 8)
-      for (int k = 0; k < 8; ++k) partial[k] += w[i + k] * x[i + k];
-    float s = m.b1[j];
-    for (; i < kFeatureCount; ++i) s += w[i] * x[i];
-    for (float p : partial) s += p;
-    h[j] = std::max(s, 0.0f);
-  }
-  std::array<float, kClassifierOutputs> logits;
-  float best = -1e30f;
-  for (int k = 0; k < kClassifierOutputs; ++k) {
-    const float* w = m.w2 + static_cast<std::size_t>(k) * m.hidden;
-    float s = m.b2[k];
-    for (int j = 0; j < m.hidden; ++j) s += w[j] * h[j];
-    logits[k] = s;
-    best = std::max(best, s);
-  }
-  float total = 0.0f;
-  for (float& l : logits) {
-    l = std::exp(l - best);
-    total += l;
-  }
-  for (int k = 0; k < kClassifierOutputs; ++k) sum[k] += logits[k] / total;
+  dense_relu(m.w1, m.b1, x.data(), kFeatureCount, m.hidden, h.data());
+  std::array<float, kClassifierOutputs> probabilities;
+  dense_softmax(m.w2, m.b2, h.data(), m.hidden, probabilities);
+  for (int k = 0; k < kClassifierOutputs; ++k) sum[k] += probabilities[k];
 }
 
 // One 3x3 convolution with padding 1 and ReLU: `in` holds `in_channels`
@@ -117,32 +123,8 @@ void cnn_probabilities(const CnnNet& n, const Features& features, const PatchScr
                                kCnnChannels3, head.data());
   for (int i = 0; i < kShapeFeatures; ++i)
     head[kCnnFlat + i] = (features[kFeatureCount - kShapeFeatures + i] - n.shape_mean[i]) * n.shape_inv_std[i];
-  auto& hidden = scratch.hidden;
-  for (int j = 0; j < kCnnHidden; ++j) {
-    const float* w = n.fc1_w + static_cast<std::size_t>(j) * kCnnHeadInputs;
-    std::array<float, 8> partial{};
-    int i = 0;
-    for (; i + 8 <= kCnnHeadInputs; i += 8)
-      for (int k = 0; k < 8; ++k) partial[k] += w[i + k] * head[i + k];
-    float s = n.fc1_b[j];
-    for (; i < kCnnHeadInputs; ++i) s += w[i] * head[i];
-    for (float p : partial) s += p;
-    hidden[j] = std::max(s, 0.0f);
-  }
-  float best = -1e30f;
-  for (int k = 0; k < kClassifierOutputs; ++k) {
-    const float* w = n.fc2_w + static_cast<std::size_t>(k) * kCnnHidden;
-    float s = n.fc2_b[k];
-    for (int j = 0; j < kCnnHidden; ++j) s += w[j] * hidden[j];
-    out[k] = s;
-    best = std::max(best, s);
-  }
-  float total = 0.0f;
-  for (float& l : out) {
-    l = std::exp(l - best);
-    total += l;
-  }
-  for (float& l : out) l /= total;
+  dense_relu(n.fc1_w, n.fc1_b, head.data(), kCnnHeadInputs, kCnnHidden, scratch.hidden.data());
+  dense_softmax(n.fc2_w, n.fc2_b, scratch.hidden.data(), kCnnHidden, out);
 }
 
 }  // namespace
@@ -161,11 +143,24 @@ int classify(const MlpModel& model, const CnnNet* cnn, float cnn_share, const Fe
   if (cnn == nullptr || cnn_share <= 0.0f) return mlp_class;
   std::array<float, kClassifierOutputs> from_cnn;
   cnn_probabilities(*cnn, features, patch, scratch, from_cnn);
+  for (int k = 0; k < kClassifierOutputs; ++k)
+    probabilities[k] = (1.0f - cnn_share) * blend_log(probabilities[k]) + cnn_share * blend_log(from_cnn[k]);
+  return softmax_in_place(probabilities);
+}
+
+float blend_log(float probability) { return std::log(std::max(probability, kBlendProbabilityFloor)); }
+
+int softmax_in_place(std::array<float, kClassifierOutputs>& logs) {
   int best_class = 0;
-  for (int k = 0; k < kClassifierOutputs; ++k) {
-    probabilities[k] = (1.0f - cnn_share) * probabilities[k] + cnn_share * from_cnn[k];
-    if (probabilities[k] > probabilities[best_class]) best_class = k;
+  for (int k = 1; k < kClassifierOutputs; ++k)
+    if (logs[k] > logs[best_class]) best_class = k;
+  const float best = logs[best_class];
+  float total = 0.0f;
+  for (float& l : logs) {
+    l = std::exp(l - best);
+    total += l;
   }
+  for (float& l : logs) l /= total;
   return best_class;
 }
 

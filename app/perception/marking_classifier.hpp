@@ -97,11 +97,24 @@ const CnnNet& builtin_marking_cnn();
 
 bool cnn_is_usable(const CnnNet& cnn);
 
-// The MLPs' probabilities blended with the network's: (1 - cnn_share) of
-// the one and cnn_share of the other (cnn == nullptr or cnn_share 0: the
-// MLPs alone). Returns the most probable class. No allocation.
+// The MLPs' probabilities blended with the network's by their weighted
+// geometric mean, normalised: mlp^(1 - cnn_share) * cnn^cnn_share (cnn ==
+// nullptr or cnn_share 0: the MLPs alone). A class either model finds
+// unlikely stays unlikely, where an average would keep half of the other's
+// confidence (cross-validation: app/perception/EXPERIMENTS.md). Returns the
+// most probable class. No allocation.
 int classify(const MlpModel& model, const CnnNet* cnn, float cnn_share, const Features& features,
              const PatchScratch& patch, CnnScratch& scratch,
              std::array<float, kClassifierOutputs>& probabilities);
+
+// The log of a probability as the blend takes it: floored at
+// kBlendProbabilityFloor, so that one model's zero (a softmax underflowing)
+// is a strong vote against, not a veto.
+inline constexpr float kBlendProbabilityFloor = 1e-12f;
+float blend_log(float probability);
+
+// Softmax in place: log-probabilities (or logits) in, probabilities out.
+// Returns the most probable class.
+int softmax_in_place(std::array<float, kClassifierOutputs>& logs);
 
 }  // namespace markloop::perception

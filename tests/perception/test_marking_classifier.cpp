@@ -121,7 +121,8 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
     total += logits[static_cast<std::size_t>(k)];
   }
 
-  // The network alone (share 1), then blended half and half with the MLPs.
+  // The network alone (share 1), then blended half and half with the MLPs
+  // (their geometric mean, normalised).
   std::array<float, kClassifierOutputs> from_net, from_mlps, blended;
   CnnScratch scratch;
   const int best = classify(builtin_marking_model(), &net, 1.0f, features, patch, scratch, from_net);
@@ -133,11 +134,16 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   }
   CHECK(best == expected_best);
   classify(builtin_marking_model(), features, from_mlps);
-  classify(builtin_marking_model(), &net, 0.5f, features, patch, scratch, blended);
-  for (int k = 0; k < kClassifierOutputs; ++k)
-    CHECK(blended[static_cast<std::size_t>(k)] ==
-          Catch::Approx(0.5f * from_net[static_cast<std::size_t>(k)] + 0.5f * from_mlps[static_cast<std::size_t>(k)])
-              .margin(1e-6));
+  const int blended_best = classify(builtin_marking_model(), &net, 0.5f, features, patch, scratch, blended);
+  std::array<double, kClassifierOutputs> product;
+  double product_total = 0.0;
+  for (std::size_t k = 0; k < product.size(); ++k) {
+    product[k] = std::sqrt(std::max(double{from_net[k]}, 1e-12) * std::max(double{from_mlps[k]}, 1e-12));
+    product_total += product[k];
+  }
+  for (std::size_t k = 0; k < product.size(); ++k)
+    CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
+  CHECK(blended_best == static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
   // No network, or share 0: the MLPs alone.
   classify(builtin_marking_model(), nullptr, 0.5f, features, patch, scratch, blended);
   CHECK(blended == from_mlps);

@@ -2,8 +2,8 @@
 # Regenerates the marking classifier, app/perception/model/marking_model.cpp
 # (the MLPs, markloop-train) and app/perception/model/marking_cnn.cpp (the
 # convolutional network, train_cnn.py: needs python3-torch), and prints
-# their evaluation, then the blend's (the detector's). Run from the repository root after
-# `cmake --preset train && cmake --build --preset train -j2` (markloop-train
+# their evaluation, then the blend's (the detector's). Run from the repository
+# root after `bash .ci/setup train` (PyTorch, and the preset train: markloop-train
 # with AVX2 and FMA, x86-64-v3: the model in the repository came from that
 # build; MARKLOOP_BUILD=build/host runs the host preset's build instead, on
 # any x86-64 host, and gives a model that differs in the last bits).
@@ -39,11 +39,11 @@ TRAIN=$BUILD/app/perception/train/markloop-train
 [ -f "$REAL/annotations.csv" ] ||
   { echo "train-model.sh: $REAL/annotations.csv: no such file (REAL_DIR: the real images)" >&2; exit 2; }
 for tool in "$SIM" "$TRAIN"; do
-  [ -x "$tool" ] || { echo "train-model.sh: $tool missing: build the preset first (see --help)" >&2; exit 2; }
+  [ -x "$tool" ] || { echo "train-model.sh: $tool missing: bash .ci/setup train first (see --help)" >&2; exit 2; }
 done
 PYTHON=${PYTHON:-/usr/bin/python3}
 "$PYTHON" -c "import torch, numpy" 2>/dev/null ||
-  { echo "train-model.sh: $PYTHON cannot import torch and numpy: apt-get install python3-torch" >&2; exit 2; }
+  { echo "train-model.sh: $PYTHON cannot import torch and numpy: bash .ci/setup train" >&2; exit 2; }
 mkdir -p "$DATA"
 # training_set SEED DIR FRAMES [CAMERA]: rendered once, through CAMERA when
 # given (default the simulator's). The simulator writes the calibration it
@@ -84,6 +84,6 @@ $CNN --folds 0,1 & first=$!
 $CNN --folds 2,3 & second=$!
 wait $first && wait $second
 $CNN --folds all --threads 2 --out app/perception/model/marking_cnn.cpp
-echo "The MLPs blended half and half with the network (as the detector classifies):"
+echo "The MLPs blended with the network (their geometric mean, as the detector classifies):"
 # shellcheck disable=SC2086
 "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $TESTS --scores "$DUMP/mlp" --scores "$DUMP/cnn"

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Trains the marking classifier's convolutional network (marking_classifier.hpp).
 
-Reads the candidates markloop-train writes with MARKLOOP_TRAIN_DUMP=DUMP
-(their patches, shape features, labels and folds; train-model.sh makes
+Reads the candidates markloop-train writes with --dump DUMP (their
+patches, shape features, labels and folds; train-model.sh makes
 them), trains one network per cross-validation fold (that fold's real clips
 held out) and one on everything, and writes:
   DUMP/cnn/train0.foldF.probs.f32  held-out class probabilities of fold F's real
@@ -10,9 +10,9 @@ held out) and one on everything, and writes:
                               every fold's is there (folds may run in parallel runs)
   DUMP/cnn/testK.probs.f32    the final network's, on the simulator test sets
   OUT (--out)                 the final network as C++ source (hexadecimal floats)
-markloop-train with MARKLOOP_TRAIN_SCORES judges the probabilities. Fixed
+markloop-train --scores DUMP/cnn judges the probabilities. Fixed
 seed and thread count: the same inputs give the same network on one machine.
-Needs python3-torch and python3-numpy (Debian packages).
+Needs python3-torch and python3-numpy (Debian packages: bash .ci/setup train).
 """
 import argparse
 import os
@@ -146,7 +146,7 @@ def write_cpp(path, model, mean, inv_std, command, samples):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("dump", help="directory markloop-train's MARKLOOP_TRAIN_DUMP wrote")
+    ap.add_argument("dump", help="directory markloop-train --dump wrote")
     ap.add_argument("--out", help="write the final network as C++ source here")
     ap.add_argument("--folds", default="0,1,2,3,all",
                     help="comma-separated folds to hold out, 'all' for the final network (default %(default)s)")
@@ -162,11 +162,11 @@ def main():
     try:
         import torch
     except ImportError:
-        sys.exit("train_cnn.py: python3-torch missing (apt-get install python3-torch)")
+        sys.exit("train_cnn.py: python3-torch missing (bash .ci/setup train, or apt-get install python3-torch)")
     torch.set_num_threads(args.threads)
     index = os.path.join(args.dump, "sets.txt")
     if not os.path.isfile(index):
-        sys.exit(f"train_cnn.py: {index}: no such file (run markloop-train with MARKLOOP_TRAIN_DUMP={args.dump})")
+        sys.exit(f"train_cnn.py: {index}: no such file (run markloop-train --dump {args.dump})")
     sets = [line.split() for line in open(index)]
     train_names = [s[0] for s in sets if s[0].startswith("train")]
     test_names = [s[0] for s in sets if s[0].startswith("test")]

@@ -89,7 +89,8 @@ constexpr const char* kUsage =
     "                      the cross-validation, the test sets' from the final model (DIR/mlp/)\n"
     "  --scores DIR        train nothing: judge the probabilities in DIR (DIR/train0.probs.f32:\n"
     "                      the real images' cross-validation, DIR/testK.probs.f32: the K-th\n"
-    "                      test set), averaged over every --scores given; the sets must be\n"
+    "                      test set), blended over every --scores given as the detector\n"
+    "                      blends (geometric mean, normalised); the sets must be\n"
     "                      given as to the run that wrote them\n"
     "  --evaluate-builtin  train nothing: judge the model compiled into this program (the\n"
     "                      MLPs blended with the network, as the detector classifies) on\n"
@@ -1075,17 +1076,25 @@ int main(int argc, char** argv) {
       fail(std::to_string(g_patch_mismatches) + " candidates' patches do not give their features");
   }
   if (!scores_dirs.empty()) {
-    // The probabilities written by --dump (MLPs) and train_cnn.py, averaged.
+    // The probabilities written by --dump (MLPs) and train_cnn.py, blended
+    // as the detector blends them (their geometric mean, normalised; each
+    // set weighs alike).
     const auto judge_with = [&](const ImageSet& set, const std::string& name,
                                 std::span<const float> thresholds, std::span<Score> by_threshold) {
-      std::vector<float> mean, storage;
+      std::vector<float> blended, storage;
+      const float share = 1.0f / static_cast<float>(scores_dirs.size());
       for (const auto& dir : scores_dirs) {
         read_probabilities(set, dir + "/" + name + ".probs.f32", storage);
-        if (mean.empty()) mean.assign(storage.size(), 0.0f);
-        for (std::size_t i = 0; i < storage.size(); ++i)
-          mean[i] += storage[i] / static_cast<float>(scores_dirs.size());
+        if (blended.empty()) blended.assign(storage.size(), 0.0f);
+        for (std::size_t i = 0; i < storage.size(); ++i) blended[i] += share * blend_log(storage[i]);
       }
-      evaluate(set, by_probabilities(set, mean), std::vector<bool>(set.images.size(), true),
+      for (std::size_t at = 0; at < blended.size(); at += kClassifierOutputs) {
+        std::array<float, kClassifierOutputs> sample;
+        std::copy_n(blended.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
+        softmax_in_place(sample);
+        std::copy(sample.begin(), sample.end(), blended.begin() + static_cast<std::ptrdiff_t>(at));
+      }
+      evaluate(set, by_probabilities(set, blended), std::vector<bool>(set.images.size(), true),
                thresholds, by_threshold);
     };
     if (!real_dir.empty()) {
@@ -1093,7 +1102,7 @@ int main(int argc, char** argv) {
       std::vector<Score> by_threshold(thresholds.size());
       print_coverage(sets.front());
       judge_with(sets.front(), "train0", thresholds, by_threshold);
-      print_score("Real images, cross-validation by clip, the probabilities given averaged:",
+      print_score("Real images, cross-validation by clip, the probabilities given blended:",
                   by_threshold.front(), true);
       print_operating_points(std::span(thresholds).subspan(1), std::span(by_threshold).subspan(1));
     }
@@ -1101,7 +1110,7 @@ int main(int argc, char** argv) {
       Score score;
       print_coverage(tests[k]);
       judge_with(tests[k], "test" + std::to_string(k), std::span(&min_score, 1), std::span(&score, 1));
-      print_score(("Simulator test set " + tests[k].dir + ", the probabilities given averaged:").c_str(),
+      print_score(("Simulator test set " + tests[k].dir + ", the probabilities given blended:").c_str(),
                   score, false);
     }
     return 0;
