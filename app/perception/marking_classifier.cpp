@@ -108,9 +108,8 @@ void cnn_probabilities(const CnnNet& n, const Features& features, const PatchScr
     for (int c = 0; c < cols; ++c) {
       const int at = (r + 1) * (cols + 2) + c + 1;
       input[at] = patch.grey[r * cols + c];
-      // As trained: the paint fraction in steps of 1/255.
       input[(rows + 2) * (cols + 2) + at] =
-          std::round(std::clamp(patch.paint[r * cols + c], 0.0f, 1.0f) * 255.0f) * (1.0f / 255.0f);
+          static_cast<float>(paint_level(patch.paint[r * cols + c])) * (1.0f / 255.0f);
     }
   convolve<rows, cols>(input.data(), kCnnInputChannels, n.conv1_w, n.conv1_b, kCnnChannels1,
                        scratch.conv1.data());

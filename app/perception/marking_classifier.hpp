@@ -7,8 +7,11 @@
 // source file (model/marking_model.cpp, written by markloop-train).
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
+#include <cstdint>
 
 #include "perception/marking_classes.hpp"
 #include "perception/marking_features.hpp"
@@ -64,6 +67,13 @@ inline constexpr int kCnnChannels3 = 32;
 inline constexpr int kCnnFlat = kCnnChannels3 * (kPatchRows / 4) * (kPatchCols / 4);
 inline constexpr int kCnnHeadInputs = kCnnFlat + kShapeFeatures;
 inline constexpr int kCnnHidden = 64;
+
+// The paint fraction as the network sees it, in steps of 1/255: the level
+// markloop-train --dump writes as a byte for train_cnn.py and the detector
+// feeds the network alike.
+inline std::uint8_t paint_level(float paint) {
+  return static_cast<std::uint8_t>(std::lround(std::clamp(paint, 0.0f, 1.0f) * 255.0f));
+}
 
 struct CnnNet {
   const float* conv1_w = nullptr;  // [kCnnChannels1][kCnnInputChannels][3][3]

@@ -126,8 +126,7 @@ struct Sample {
 
 void keep_patch(const PatchScratch& scratch, Sample& s) {
   s.grey = scratch.grey;
-  for (std::size_t i = 0; i < s.paint.size(); ++i)
-    s.paint[i] = static_cast<std::uint8_t>(std::lround(std::clamp(scratch.paint[i], 0.0f, 1.0f) * 255.0f));
+  for (std::size_t i = 0; i < s.paint.size(); ++i) s.paint[i] = paint_level(scratch.paint[i]);
 }
 
 constexpr int kJitters = 6;
