@@ -3,7 +3,8 @@
 // process is counted while the ECU
 //   - decodes and integrates VehicleOdometry every 20 ms (E2E checked),
 //   - runs the marking detector on a camera frame every 100 ms (synthetic
-//     1280x512 frames with painted shapes, cycled),
+//     1280x512 frames with painted shapes, cycled; every 500 ms under an
+//     emulator, where the classifier's network costs ~30x the host's time),
 //   - feeds the markings a camera sees on a 1.2 km loop road to the sequence
 //     engine (landmarks, sequences, database with rings wrapping, matching,
 //     verification) and encodes every loop detection as 6 CAN pages,
@@ -31,6 +32,14 @@ using namespace markloop::ecu;
 using namespace markloop::ecu::testing;
 using markloop::test::AllocationCounter;
 using namespace std::chrono_literals;
+
+namespace {
+#ifdef MARKLOOP_UNDER_EMULATOR
+constexpr int kCameraFramesPerDetectorFrame = 5;
+#else
+constexpr int kCameraFramesPerDetectorFrame = 1;
+#endif
+}  // namespace
 
 TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays flat") {
   EcuConfig config;
@@ -70,7 +79,9 @@ TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays fl
       if (t.count() % 100'000'000 != 0) continue;
       const auto frame_index = static_cast<std::size_t>(t.count() / 100'000'000);
       // The detector's path on a real frame, then what the camera sees of the road.
-      (void)ecu.on_frame(frames[frame_index % frames.size()], t, SteadyClock::now());
+      if (frame_index % kCameraFramesPerDetectorFrame == 0)
+        (void)ecu.on_frame(frames[(frame_index / kCameraFramesPerDetectorFrame) % frames.size()], t,
+                           SteadyClock::now());
       const std::size_t n = road.detections(std::chrono::duration<double>(t).count(), detections);
       ecu.on_detections(std::span<const perception::Detection>(detections.data(), n), t + 1ns,
                         SteadyClock::now());
@@ -94,7 +105,7 @@ TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays fl
 
   INFO("allocations during the hour: " << allocations);
   CHECK(allocations == 0);
-  CHECK(ecu.counters().frames_processed >= 2 * 36000);
+  CHECK(ecu.counters().frames_processed >= 36000 + 36000 / kCameraFramesPerDetectorFrame);
   CHECK(ecu.counters().loop_detections - detections_before > 500);
   CHECK(bus.errors == 0);
   CHECK(ecu.engine().database().stats().landmarks_evicted > 1000);
