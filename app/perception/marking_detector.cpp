@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <exception>
 
 #include <opencv2/core/persistence.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "perception/marking_classifier.hpp"
 
@@ -120,10 +123,9 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   integral_.setTo(0);
   valid_integral_.create(rows + 1, cols + 1, CV_32SC1);
   valid_integral_.setTo(0);
-  paint_sum_integral_.create(rows + 1, cols + 1, CV_32SC1);
-  paint_sum_integral_.setTo(0);
-  paint_count_integral_.create(rows + 1, cols + 1, CV_32SC1);
-  paint_count_integral_.setTo(0);
+  road_pixels_.create(rows, cols, CV_8UC2);
+  road_integral_.create(rows + 1, cols + 1, CV_32SC2);
+  road_integral_.setTo(cv::Scalar::all(0));
   at_edge_.create(rows, cols, CV_8UC1);
   update_view_masks();
   // The road's horizon straight ahead: where a point 100 km ahead appears.
@@ -413,16 +415,7 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
 
 void MarkingDetector::threshold() {
   const int rows = bev_.rows, cols = bev_.cols;
-  for (int r = 0; r < rows; ++r) {
-    const std::uint8_t* in = bev_.ptr<std::uint8_t>(r);
-    const std::int32_t* above = integral_.ptr<std::int32_t>(r);
-    std::int32_t* out = integral_.ptr<std::int32_t>(r + 1);
-    std::int32_t line = 0;
-    for (int c = 0; c < cols; ++c) {
-      line += in[c];
-      out[c + 1] = above[c + 1] + line;
-    }
-  }
+  cv::integral(bev_, integral_, CV_32S);  // into the buffer sized at start-up
   const int half_r = window_rows_ / 2, half_c = window_cols_ / 2;
   // Paint: value > mean + max(contrast, ratio * mean).
   const std::int32_t ratio_q8 =
@@ -458,25 +451,23 @@ void MarkingDetector::threshold() {
 
 void MarkingDetector::veto_one_sided_paint() {
   const int rows = bev_.rows, cols = bev_.cols;
-  // Integrals of the paint found so far (its values and its count), so that
-  // a quadrant's road is its pixels less its paint: a quadrant that an arrow's
-  // head fills is judged by the road around the head, not by the head.
+  // Integral of the road, i.e. of the pixels less the paint found so far (its
+  // values and its count), so that a quadrant that an arrow's head fills is
+  // judged by the road around the head, not by the head. threshold() paints
+  // valid pixels only: the road is what is valid and not painted.
+  const cv::Mat& valid = birdseye_.valid();
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* in = bev_.ptr<std::uint8_t>(r);
     const std::uint8_t* m = mask_.ptr<std::uint8_t>(r);
-    const std::int32_t* sum_above = paint_sum_integral_.ptr<std::int32_t>(r);
-    const std::int32_t* count_above = paint_count_integral_.ptr<std::int32_t>(r);
-    std::int32_t* sum_out = paint_sum_integral_.ptr<std::int32_t>(r + 1);
-    std::int32_t* count_out = paint_count_integral_.ptr<std::int32_t>(r + 1);
-    std::int32_t sum_line = 0, count_line = 0;
+    const std::uint8_t* v = valid.ptr<std::uint8_t>(r);
+    std::uint8_t* road = road_pixels_.ptr<std::uint8_t>(r);
     for (int c = 0; c < cols; ++c) {
-      const std::int32_t paint = m[c] != 0;
-      sum_line += paint * in[c];
-      count_line += paint;
-      sum_out[c + 1] = sum_above[c + 1] + sum_line;
-      count_out[c + 1] = count_above[c + 1] + count_line;
+      const std::uint8_t is_road = static_cast<std::uint8_t>((v[c] != 0) & (m[c] == 0));
+      road[2 * c] = static_cast<std::uint8_t>(in[c] * is_road);
+      road[2 * c + 1] = is_road;
     }
   }
+  cv::integral(road_pixels_, road_integral_, CV_32S);
   const int half_r = window_rows_ / 2, half_c = window_cols_ / 2;
   const std::int32_t ratio_q8 =
       static_cast<std::int32_t>(std::lround(config_.quadrant_min_contrast_ratio * 256.0f));
@@ -484,25 +475,26 @@ void MarkingDetector::veto_one_sided_paint() {
   // A quadrant with little road (the view's edge, paint) says too little
   // about the road there to veto anything.
   const std::int32_t min_count = std::max(1, (half_r + 1) * (half_c + 1) / 4);
-  const auto box = [](const cv::Mat& integral, int r0, int r1, int c0, int c1) {
-    return integral.at<std::int32_t>(r1, c1) - integral.at<std::int32_t>(r1, c0) -
-           integral.at<std::int32_t>(r0, c1) + integral.at<std::int32_t>(r0, c0);
-  };
   for (int r = 0; r < rows; ++r) {
     std::uint8_t* out = mask_.ptr<std::uint8_t>(r);
     const std::uint8_t* in = bev_.ptr<std::uint8_t>(r);
-    const int row_bounds[2][2] = {{std::max(0, r - half_r), r + 1}, {r, std::min(rows, r + half_r + 1)}};
+    // The quadrants' rows: [r - half_r, r] and [r, r + half_r], clamped.
+    const cv::Vec2i* row_bounds[2][2] = {
+        {road_integral_.ptr<cv::Vec2i>(std::max(0, r - half_r)), road_integral_.ptr<cv::Vec2i>(r + 1)},
+        {road_integral_.ptr<cv::Vec2i>(r), road_integral_.ptr<cv::Vec2i>(std::min(rows, r + half_r + 1))}};
     for (int c = 0; c < cols; ++c) {
-      if (out[c] == 0) continue;  // most pixels: paint is sparse
+      // Most pixels are no paint: skip them eight at a time.
+      if (std::uint64_t eight = 0; c + 8 <= cols && (std::memcpy(&eight, out + c, 8), eight == 0)) {
+        c += 7;
+        continue;
+      }
+      if (out[c] == 0) continue;
       const int col_bounds[2][2] = {{std::max(0, c - half_c), c + 1}, {c, std::min(cols, c + half_c + 1)}};
       for (const auto& rb : row_bounds) {
         for (const auto& cb : col_bounds) {
-          const std::int32_t count = box(valid_integral_, rb[0], rb[1], cb[0], cb[1]) -
-                                     box(paint_count_integral_, rb[0], rb[1], cb[0], cb[1]);
-          if (count < min_count) continue;
-          const std::int32_t sum = box(integral_, rb[0], rb[1], cb[0], cb[1]) -
-                                   box(paint_sum_integral_, rb[0], rb[1], cb[0], cb[1]);
-          if (!brighter_than_mean(in[c], sum, count, contrast_q8, ratio_q8)) out[c] = 0;
+          const cv::Vec2i road = rb[1][cb[1]] - rb[1][cb[0]] - rb[0][cb[1]] + rb[0][cb[0]];
+          if (road[1] < min_count) continue;
+          if (!brighter_than_mean(in[c], road[0], road[1], contrast_q8, ratio_q8)) out[c] = 0;
         }
       }
     }

@@ -303,7 +303,10 @@ class MarkingDetector {
   cv::Mat mask_;      // CV_8UC1 paint mask
   cv::Mat integral_;        // CV_32SC1 (rows+1) x (cols+1): bird's-eye sums
   cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (for the view's row shift)
-  cv::Mat paint_sum_integral_, paint_count_integral_;  // of the paint the window test found
+  // CV_8UC2 {value, 1}: the road's pixels (valid, not painted by the
+  // window test), 0 elsewhere; CV_32SC2: their integral, interleaved so that
+  // a quadrant's sum and count share cache lines.
+  cv::Mat road_pixels_, road_integral_;
   cv::Mat at_edge_;         // CV_8UC1: kNearEdge / kOtherEdge where a pixel borders what is not seen
   std::vector<std::int16_t> run_above_;     // paint run length down to each pixel
   std::vector<std::int16_t> run_below_;     // ... and from it downwards
