@@ -39,6 +39,17 @@ inline bool brighter_than_mean(std::int32_t value, std::int32_t sum, std::int32_
   return value * count * 256 > sum * 256 + margin;
 }
 
+// The first column from c on with paint in row m, or cols: paint is sparse,
+// so unpainted stretches are skipped eight bytes at a time.
+int next_painted(const std::uint8_t* m, int c, int cols) {
+  for (std::uint64_t eight = 0; c + 8 <= cols; c += 8) {
+    std::memcpy(&eight, m + c, sizeof eight);
+    if (eight != 0) break;
+  }
+  while (c < cols && m[c] == 0) ++c;
+  return c;
+}
+
 int find_root(std::int32_t* parent, int i) {
   while (parent[i] != i) {
     parent[i] = parent[parent[i]];  // path halving
@@ -482,13 +493,7 @@ void MarkingDetector::veto_one_sided_paint() {
     const cv::Vec2i* row_bounds[2][2] = {
         {road_integral_.ptr<cv::Vec2i>(std::max(0, r - half_r)), road_integral_.ptr<cv::Vec2i>(r + 1)},
         {road_integral_.ptr<cv::Vec2i>(r), road_integral_.ptr<cv::Vec2i>(std::min(rows, r + half_r + 1))}};
-    for (int c = 0; c < cols; ++c) {
-      // Most pixels are no paint: skip them eight at a time.
-      if (std::uint64_t eight = 0; c + 8 <= cols && (std::memcpy(&eight, out + c, 8), eight == 0)) {
-        c += 7;
-        continue;
-      }
-      if (out[c] == 0) continue;
+    for (int c = next_painted(out, 0, cols); c < cols; c = next_painted(out, c + 1, cols)) {
       const int col_bounds[2][2] = {{std::max(0, c - half_c), c + 1}, {c, std::min(cols, c + half_c + 1)}};
       for (const auto& rb : row_bounds) {
         for (const auto& cb : col_bounds) {
@@ -565,11 +570,7 @@ void MarkingDetector::cut_line_junctions() {
     const std::int16_t* above = run_above_.data() + static_cast<std::size_t>(r) * cols;
     std::int16_t* below = run_below_.data() + static_cast<std::size_t>(r) * cols;
     int c = 0;
-    while (c < cols) {
-      if (m[c] == 0) {
-        ++c;
-        continue;
-      }
+    while ((c = next_painted(m, c, cols)) < cols) {
       int end = c;
       while (end < cols && m[end] != 0) ++end;
       const bool unbroken = end - c >= across;
@@ -619,9 +620,10 @@ std::size_t MarkingDetector::label_parts() {
     std::int32_t* row = labels + static_cast<std::size_t>(r) * cols;
     const std::int32_t* up = r > 0 ? row - cols : nullptr;
     for (int c = 0; c < cols; ++c) {
-      if (m[c] == 0) {
-        row[c] = -1;
-        continue;
+      if (const int painted = next_painted(m, c, cols); painted != c) {
+        std::fill(row + c, row + painted, -1);
+        if (painted == cols) break;
+        c = painted;
       }
       int label = -1;
       const auto join = [&](std::int32_t other) {
