@@ -43,7 +43,7 @@ def load(prefix):
     return meta, feats[:, -SHAPE:].copy(), image
 
 
-def make_network(torch):
+def make_network(torch, dropout=0.0):
     nn = torch.nn
 
     class Cnn(nn.Module):
@@ -58,9 +58,26 @@ def make_network(torch):
 
         def forward(self, image, shape):
             x = torch.cat([self.conv(image).flatten(1), shape], 1)
-            return self.fc2(torch.relu(self.fc1(x)))
+            hidden = torch.nn.functional.dropout(torch.relu(self.fc1(x)), dropout, self.training)
+            return self.fc2(hidden)
 
     return Cnn()
+
+
+def cut_out(torch, image, probability, generator):
+    """Random erasing: in a share of the patches, a random rectangle (up to
+    half the patch each way) is set to the road's mean grey and to no paint,
+    as a shadow, wear or an occluding object would hide part of a marking."""
+    n = image.shape[0]
+    rows = torch.arange(ROWS).view(1, ROWS, 1)
+    cols = torch.arange(COLS).view(1, 1, COLS)
+    height = torch.randint(2, ROWS // 2 + 1, (n, 1, 1), generator=generator)
+    width = torch.randint(2, COLS // 2 + 1, (n, 1, 1), generator=generator)
+    top = (torch.rand((n, 1, 1), generator=generator) * (ROWS - height + 1)).long()
+    left = (torch.rand((n, 1, 1), generator=generator) * (COLS - width + 1)).long()
+    chosen = torch.rand((n, 1, 1), generator=generator) < probability
+    erase = chosen & (rows >= top) & (rows < top + height) & (cols >= left) & (cols < left + width)
+    return image.masked_fill(erase.unsqueeze(1), 0.0)
 
 
 def train(torch, image, shape, labels, weights, args):
@@ -68,7 +85,7 @@ def train(torch, image, shape, labels, weights, args):
     the weights over the last steps (as markloop-train's --weight-average)."""
     torch.manual_seed(args.seed)
     generator = torch.Generator().manual_seed(args.seed)
-    model = make_network(torch)
+    model = make_network(torch, args.dropout)
     optimiser = torch.optim.Adam(model.parameters(), lr=1e-3, weight_decay=args.weight_decay)
     average = [p.detach().clone() for p in model.parameters()]
     n = labels.shape[0]
@@ -78,7 +95,8 @@ def train(torch, image, shape, labels, weights, args):
         total = 0.0
         for start in range(0, n, args.batch):
             idx = order[start:start + args.batch]
-            loss = (torch.nn.functional.cross_entropy(model(image[idx], shape[idx]), labels[idx],
+            batch = image[idx] if args.cutout <= 0 else cut_out(torch, image[idx], args.cutout, generator)
+            loss = (torch.nn.functional.cross_entropy(model(batch, shape[idx]), labels[idx],
                                                       reduction="none") * weights[idx]).mean()
             optimiser.zero_grad()
             loss.backward()
@@ -156,6 +174,10 @@ def main():
     ap.add_argument("--weight-average", type=float, default=0.9999)
     ap.add_argument("--real-weight", type=float, default=2.0)
     ap.add_argument("--reject-weight", type=float, default=2.5)
+    ap.add_argument("--cutout", type=float, default=0.0,
+                    help="share of training patches with a random rectangle erased (default %(default)s)")
+    ap.add_argument("--dropout", type=float, default=0.0,
+                    help="dropout on the hidden layer while training (default %(default)s)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--threads", type=int, default=1, help="torch threads per training (default 1)")
     args = ap.parse_args()
