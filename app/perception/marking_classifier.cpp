@@ -86,16 +86,16 @@ void convolve(const float* in, int in_channels, const float* weights, const floa
 
 // 2x2 max pooling of `channels` planes of rows x cols into planes of
 // (rows / 2 + 2) x (cols / 2 + 2) with a zero border (the next convolution's
-// padding), or without the border when `border` is 0.
-template <int rows, int cols, int border>
+// padding).
+template <int rows, int cols>
 void pool(const float* in, int channels, float* out) {
-  constexpr int out_rows = rows / 2 + 2 * border, out_cols = cols / 2 + 2 * border;
+  constexpr int out_rows = rows / 2 + 2, out_cols = cols / 2 + 2;
   std::fill(out, out + channels * out_rows * out_cols, 0.0f);
   for (int ch = 0; ch < channels; ++ch)
     for (int r = 0; r < rows / 2; ++r)
       for (int c = 0; c < cols / 2; ++c) {
         const float* p = in + ch * rows * cols + 2 * r * cols + 2 * c;
-        out[ch * out_rows * out_cols + (r + border) * out_cols + c + border] =
+        out[ch * out_rows * out_cols + (r + 1) * out_cols + c + 1] =
             std::max(std::max(p[0], p[1]), std::max(p[cols], p[cols + 1]));
       }
 }
@@ -113,10 +113,10 @@ void cnn_probabilities(const CnnNet& n, const Features& features, const PatchScr
     }
   convolve<rows, cols>(input.data(), kCnnInputChannels, n.conv1_w, n.conv1_b, kCnnChannels1,
                        scratch.conv1.data());
-  pool<rows, cols, 1>(scratch.conv1.data(), kCnnChannels1, scratch.pooled1.data());
+  pool<rows, cols>(scratch.conv1.data(), kCnnChannels1, scratch.pooled1.data());
   convolve<rows / 2, cols / 2>(scratch.pooled1.data(), kCnnChannels1, n.conv2_w, n.conv2_b,
                                kCnnChannels2, scratch.conv2.data());
-  pool<rows / 2, cols / 2, 1>(scratch.conv2.data(), kCnnChannels2, scratch.pooled2.data());
+  pool<rows / 2, cols / 2>(scratch.conv2.data(), kCnnChannels2, scratch.pooled2.data());
   auto& head = scratch.head;
   convolve<rows / 4, cols / 4>(scratch.pooled2.data(), kCnnChannels2, n.conv3_w, n.conv3_b,
                                kCnnChannels3, head.data());
