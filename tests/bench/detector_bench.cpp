@@ -5,7 +5,13 @@
 // Single thread: run under `taskset -c N` to pin it to one core. Wall time
 // includes being preempted by other processes on a shared machine; the
 // thread's CPU time (CLOCK_THREAD_CPUTIME_ID) does not, and is printed too.
+// The cores of one machine may run at different speeds (a VM's virtual CPUs
+// share their hosts' cores unevenly), so the cores the frames ran on are
+// printed with the figures.
+#include <sched.h>
+
 #include <algorithm>
+#include <bitset>
 #include <chrono>
 #include <ctime>
 #include <cstdio>
@@ -107,6 +113,7 @@ int main(int argc, char** argv) {
   ms.reserve(frames);
   cpu_ms.reserve(frames);
   std::size_t detections = 0, candidates = 0;
+  std::bitset<1024> cores;  // the CPUs the timed frames started on
   for (unsigned i = 0; i < skip + frames; ++i) {
     const cv::Mat* input = &frame;
     if (!y4m_path.empty()) {
@@ -117,6 +124,8 @@ int main(int argc, char** argv) {
     } else {
       input = &synthetic[i % synthetic.size()];
     }
+    if (const int core = sched_getcpu(); core >= 0 && core < static_cast<int>(cores.size()))
+      cores.set(static_cast<std::size_t>(core));
     const double c0 = thread_cpu_ms();
     const auto t0 = std::chrono::steady_clock::now();
     detections += detector.detect(*input).size();
@@ -129,6 +138,11 @@ int main(int argc, char** argv) {
   std::printf("detect() on %dx%d frames (%s), bird's-eye %dx%d, %zu frames\n", camera.width(),
               camera.height(), y4m_path.empty() ? "synthetic" : y4m_path.c_str(),
               detector.birdseye().cols(), detector.birdseye().rows(), ms.size());
+  std::string core_list;
+  for (std::size_t core = 0; core < cores.size(); ++core)
+    if (cores.test(core)) core_list += (core_list.empty() ? "" : ", ") + std::to_string(core);
+  std::printf("CPU %s%s\n", core_list.c_str(),
+              cores.count() > 1 ? " (not pinned: the cores may differ in speed; taskset -c N)" : "");
   std::printf("| time | median | p90 | p99 | max | candidates/frame | detections/frame |\n");
   std::printf("|---|---:|---:|---:|---:|---:|---:|\n");
   const double per_frame_candidates = static_cast<double>(candidates) / static_cast<double>(ms.size());
