@@ -4,7 +4,7 @@
 //   - decodes and integrates VehicleOdometry every 20 ms (E2E checked),
 //   - runs the marking detector on a camera frame every 100 ms (synthetic
 //     1280x512 frames with painted shapes, cycled; every 500 ms under an
-//     emulator, where the classifier's network costs ~30x the host's time),
+//     emulator, where the whole test ran 35 times slower than on the host),
 //   - feeds the markings a camera sees on a 1.2 km loop road to the sequence
 //     engine (landmarks, sequences, database with rings wrapping, matching,
 //     verification) and encodes every loop detection as 6 CAN pages,
