@@ -135,15 +135,25 @@ bool cnn_is_usable(const CnnNet& n) {
   return true;
 }
 
-int classify(const MlpModel& model, const CnnNet* cnn, float cnn_share, const Features& features,
+bool cnn_is_usable(const CnnModel& cnn) {
+  if (cnn.members < 1 || cnn.members > kMaxCnnMembers) return false;
+  for (int i = 0; i < cnn.members; ++i)
+    if (!cnn_is_usable(cnn.nets[i])) return false;
+  return true;
+}
+
+int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, const Features& features,
              const PatchScratch& patch, CnnScratch& scratch,
              std::array<float, kClassifierOutputs>& probabilities) {
   const int mlp_class = classify(model, features, probabilities);
   if (cnn == nullptr || cnn_share <= 0.0f) return mlp_class;
+  for (float& p : probabilities) p = (1.0f - cnn_share) * blend_log(p);
+  const float member_share = cnn_share / static_cast<float>(cnn->members);
   std::array<float, kClassifierOutputs> from_cnn;
-  cnn_probabilities(*cnn, features, patch, scratch, from_cnn);
-  for (int k = 0; k < kClassifierOutputs; ++k)
-    probabilities[k] = (1.0f - cnn_share) * blend_log(probabilities[k]) + cnn_share * blend_log(from_cnn[k]);
+  for (int m = 0; m < cnn->members; ++m) {
+    cnn_probabilities(cnn->nets[m], features, patch, scratch, from_cnn);
+    for (int k = 0; k < kClassifierOutputs; ++k) probabilities[k] += member_share * blend_log(from_cnn[k]);
+  }
   return softmax_in_place(probabilities);
 }
 

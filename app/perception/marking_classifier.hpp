@@ -102,18 +102,29 @@ struct CnnScratch {
   std::array<float, kCnnHidden> hidden{};
 };
 
-// The network compiled into the program (model/marking_cnn.cpp).
-const CnnNet& builtin_marking_cnn();
+// Networks of one layout trained from different random starts: one seed
+// moves a network's recall on a clip held out by about 2 points, and
+// together they are steadier than either (app/perception/EXPERIMENTS.md).
+inline constexpr int kMaxCnnMembers = 2;
+
+struct CnnModel {
+  int members = 0;  // 1..kMaxCnnMembers
+  std::array<CnnNet, kMaxCnnMembers> nets{};
+};
+
+// The networks compiled into the program (model/marking_cnn.cpp).
+const CnnModel& builtin_marking_cnn();
 
 bool cnn_is_usable(const CnnNet& cnn);
+bool cnn_is_usable(const CnnModel& cnn);
 
-// The MLPs' probabilities blended with the network's by their weighted
-// geometric mean, normalised: mlp^(1 - cnn_share) * cnn^cnn_share (cnn ==
-// nullptr or cnn_share 0: the MLPs alone). A class either model finds
+// The MLPs' probabilities blended with the networks' by their weighted
+// geometric mean, normalised: mlp^(1 - cnn_share) * (cnn_1 ... cnn_M)^(cnn_share / M)
+// (cnn == nullptr or cnn_share 0: the MLPs alone). A class either model finds
 // unlikely stays unlikely, where an average would keep half of the other's
 // confidence (cross-validation: app/perception/EXPERIMENTS.md). Returns the
 // most probable class. No allocation.
-int classify(const MlpModel& model, const CnnNet* cnn, float cnn_share, const Features& features,
+int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, const Features& features,
              const PatchScratch& patch, CnnScratch& scratch,
              std::array<float, kClassifierOutputs>& probabilities);
 

@@ -156,9 +156,9 @@ struct DetectorConfig {
   bool hidden_below_follows_horizon = false;
   // Classifier weights; nullptr: the model compiled in (model/marking_model.cpp).
   const MlpModel* model = nullptr;
-  // The convolutional network blended in (marking_classifier.hpp); nullptr:
-  // the one compiled in (model/marking_cnn.cpp). cnn_share 0: MLPs alone.
-  const CnnNet* cnn = nullptr;
+  // The convolutional networks blended in (marking_classifier.hpp); nullptr:
+  // those compiled in (model/marking_cnn.cpp). cnn_share 0: MLPs alone.
+  const CnnModel* cnn = nullptr;
   float cnn_share = 0.5f;
 };
 
@@ -295,7 +295,7 @@ class MarkingDetector {
   DetectorConfig config_;
   BirdsEyeView birdseye_;
   const MlpModel* model_;
-  const CnnNet* cnn_;
+  const CnnModel* cnn_;
   int window_cols_ = 1, window_rows_ = 1;
   int min_part_area_px_ = 1;
 

@@ -78,8 +78,18 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   const CnnNet net{conv1_w.data(), conv1_b.data(), conv2_w.data(),    conv2_b.data(),
                    conv3_w.data(), conv3_b.data(), shape_mean.data(), shape_inv_std.data(),
                    fc1_w.data(),   fc1_b.data(),   fc2_w.data(),      fc2_b.data()};
+  const CnnModel one{1, {net}};
+  // A second member: the same layers, other output weights.
+  const auto fc2_w_other = random_values(rng, kClassifierOutputs * kCnnHidden, 0.3f);
+  CnnNet other = net;
+  other.fc2_w = fc2_w_other.data();
+  const CnnModel two{2, {net, other}};
   REQUIRE(cnn_is_usable(net));
+  REQUIRE(cnn_is_usable(one));
+  REQUIRE(cnn_is_usable(two));
   REQUIRE_FALSE(cnn_is_usable(CnnNet{}));
+  REQUIRE_FALSE(cnn_is_usable(CnnModel{}));
+  REQUIRE_FALSE(cnn_is_usable(CnnModel{2, {net, CnnNet{}}}));
 
   PatchScratch patch;
   std::normal_distribution<float> grey(0.0f, 1.0f);
@@ -125,7 +135,7 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   // (their geometric mean, normalised).
   std::array<float, kClassifierOutputs> from_net, from_mlps, blended;
   CnnScratch scratch;
-  const int best = classify(builtin_marking_model(), &net, 1.0f, features, patch, scratch, from_net);
+  const int best = classify(builtin_marking_model(), &one, 1.0f, features, patch, scratch, from_net);
   int expected_best = 0;
   for (int k = 0; k < kClassifierOutputs; ++k) {
     CHECK(from_net[static_cast<std::size_t>(k)] ==
@@ -134,7 +144,7 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   }
   CHECK(best == expected_best);
   classify(builtin_marking_model(), features, from_mlps);
-  const int blended_best = classify(builtin_marking_model(), &net, 0.5f, features, patch, scratch, blended);
+  const int blended_best = classify(builtin_marking_model(), &one, 0.5f, features, patch, scratch, blended);
   std::array<double, kClassifierOutputs> product;
   double product_total = 0.0;
   for (std::size_t k = 0; k < product.size(); ++k) {
@@ -144,6 +154,22 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   for (std::size_t k = 0; k < product.size(); ++k)
     CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
   CHECK(blended_best == static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
+  // Two networks share the network's half alike: mlp^(1/2) net^(1/4) other^(1/4).
+  std::array<float, kClassifierOutputs> from_other;
+  classify(builtin_marking_model(), &two, 0.0f, features, patch, scratch, blended);
+  CHECK(blended == from_mlps);
+  const CnnModel other_alone{1, {other}};
+  classify(builtin_marking_model(), &other_alone, 1.0f, features, patch, scratch, from_other);
+  const int ensemble_best = classify(builtin_marking_model(), &two, 0.5f, features, patch, scratch, blended);
+  product_total = 0.0;
+  for (std::size_t k = 0; k < product.size(); ++k) {
+    product[k] = std::sqrt(std::max(double{from_mlps[k]}, 1e-12)) *
+                 std::pow(std::max(double{from_net[k]}, 1e-12) * std::max(double{from_other[k]}, 1e-12), 0.25);
+    product_total += product[k];
+  }
+  for (std::size_t k = 0; k < product.size(); ++k)
+    CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
+  CHECK(ensemble_best == static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
   // No network, or share 0: the MLPs alone.
   classify(builtin_marking_model(), nullptr, 0.5f, features, patch, scratch, blended);
   CHECK(blended == from_mlps);

@@ -12212,6 +12212,7 @@ constexpr CnnNet kNet{kConv1W, kConv1B, kConv2W, kConv2B, kConv3W, kConv3B,
 
 }  // namespace
 
-const CnnNet& builtin_marking_cnn() { return kNet; }
+constexpr CnnModel kModel{1, {kNet}};
+const CnnModel& builtin_marking_cnn() { return kModel; }
 
 }  // namespace markloop::perception

@@ -22,8 +22,9 @@
 # 1.5 points either way), and a drive of the `loop` scenario with seed 7.
 # markloop-train trains its default ensemble of 3 networks (seeds 1, 101, 201)
 # and writes the candidates to build/train-data/candidates; train_cnn.py
-# trains the network on them, its cross-validation folds two at a time (one
-# thread each), the final one on two threads. Same inputs, same model: every
+# trains the convolutional networks on them (seeds 1 and 2), the
+# cross-validation folds two at a time (one thread each), the final ones on
+# two threads. Same inputs, same model: every
 # random choice is seeded.
 set -eu
 case "${1:-}" in
@@ -78,12 +79,14 @@ DUMP=$DATA/candidates
 "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $sims \
   --sim-drive-train "$DATA/drive-figure8-21" $TESTS $RECIPE \
   --out app/perception/model/marking_model.cpp --dump "$DUMP"
-CNN="$PYTHON app/perception/train/train_cnn.py $DUMP"
-rm -f "$DUMP"/cnn/*.probs.f32
+CNN="$PYTHON app/perception/train/train_cnn.py $DUMP --seeds $CNN_SEEDS"
+rm -rf "$DUMP"/cnn
 $CNN --folds 0,1 & first=$!
 $CNN --folds 2,3 & second=$!
 wait $first && wait $second
 $CNN --folds all --threads 2 --out app/perception/model/marking_cnn.cpp
-echo "The MLPs blended with the network (their geometric mean, as the detector classifies):"
+echo "The MLPs blended with the networks (their geometric mean, as the detector classifies):"
+scores="--scores $DUMP/mlp"
+for seed in $(echo "$CNN_SEEDS" | tr , ' '); do scores="$scores --scores $DUMP/cnn/seed$seed"; done
 # shellcheck disable=SC2086
-"$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $TESTS --scores "$DUMP/mlp" --scores "$DUMP/cnn"
+"$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $TESTS $scores

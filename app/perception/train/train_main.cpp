@@ -90,10 +90,11 @@ constexpr const char* kUsage =
     "  --scores DIR        train nothing: judge the probabilities in DIR (DIR/train0.probs.f32:\n"
     "                      the real images' cross-validation, DIR/testK.probs.f32: the K-th\n"
     "                      test set), blended over every --scores given as the detector\n"
-    "                      blends (geometric mean, normalised); the sets must be\n"
+    "                      blends (geometric mean, normalised): the first the MLPs' (DIR/mlp),\n"
+    "                      each further one a network's (DIR/cnn/seedS); the sets must be\n"
     "                      given as to the run that wrote them\n"
     "  --evaluate-builtin  train nothing: judge the model compiled into this program (the\n"
-    "                      MLPs blended with the network, as the detector classifies) on\n"
+    "                      MLPs blended with the networks, as the detector classifies) on\n"
     "                      the sets given (real images: a training fit, not a validation)\n"
     "\n"
     "Diagnostics, set in the environment:\n"
@@ -1075,15 +1076,18 @@ int main(int argc, char** argv) {
       fail(std::to_string(g_patch_mismatches) + " candidates' patches do not give their features");
   }
   if (!scores_dirs.empty()) {
-    // The probabilities written by --dump (MLPs) and train_cnn.py, blended
-    // as the detector blends them (their geometric mean, normalised; each
-    // set weighs alike).
+    // The probabilities written by --dump (MLPs, the first DIR) and
+    // train_cnn.py (a network per further DIR), blended as the detector
+    // blends them (their geometric mean, normalised; the networks share
+    // cnn_share alike). One DIR alone is judged as it is.
     const auto judge_with = [&](const ImageSet& set, const std::string& name,
                                 std::span<const float> thresholds, std::span<Score> by_threshold) {
       std::vector<float> blended, storage;
-      const float share = 1.0f / static_cast<float>(scores_dirs.size());
-      for (const auto& dir : scores_dirs) {
-        read_probabilities(set, dir + "/" + name + ".probs.f32", storage);
+      const float cnn_share = scores_dirs.size() > 1 ? DetectorConfig{}.cnn_share : 0.0f;
+      for (std::size_t d = 0; d < scores_dirs.size(); ++d) {
+        const float share =
+            d == 0 ? 1.0f - cnn_share : cnn_share / static_cast<float>(scores_dirs.size() - 1);
+        read_probabilities(set, scores_dirs[d] + "/" + name + ".probs.f32", storage);
         if (blended.empty()) blended.assign(storage.size(), 0.0f);
         for (std::size_t i = 0; i < storage.size(); ++i) blended[i] += share * blend_log(storage[i]);
       }
@@ -1115,7 +1119,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (evaluate_builtin) {
-    // As the detector classifies: the MLPs blended with the network.
+    // As the detector classifies: the MLPs blended with the networks.
     const ClassifySample model = [](const Sample& s, std::array<float, kClassifierOutputs>& p) {
       PatchScratch patch;
       patch.grey = s.grey;
