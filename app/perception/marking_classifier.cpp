@@ -142,11 +142,12 @@ bool cnn_is_usable(const CnnModel& cnn) {
   return true;
 }
 
-int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, const Features& features,
-             const PatchScratch& patch, CnnScratch& scratch,
+int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, float skip_networks_at,
+             const Features& features, const PatchScratch& patch, CnnScratch& scratch,
              std::array<float, kClassifierOutputs>& probabilities) {
   const int mlp_class = classify(model, features, probabilities);
-  if (cnn == nullptr || cnn_share <= 0.0f) return mlp_class;
+  if (cnn == nullptr || cnn_share <= 0.0f || probabilities[kRejectClass] >= skip_networks_at)
+    return mlp_class;
   for (float& p : probabilities) p = (1.0f - cnn_share) * blend_log(p);
   const float member_share = cnn_share / static_cast<float>(cnn->members);
   std::array<float, kClassifierOutputs> from_cnn;

@@ -122,10 +122,15 @@ bool cnn_is_usable(const CnnModel& cnn);
 // geometric mean, normalised: mlp^(1 - cnn_share) * (cnn_1 ... cnn_M)^(cnn_share / M)
 // (cnn == nullptr or cnn_share 0: the MLPs alone). A class either model finds
 // unlikely stays unlikely, where an average would keep half of the other's
-// confidence (cross-validation: app/perception/EXPERIMENTS.md). Returns the
-// most probable class. No allocation.
-int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, const Features& features,
-             const PatchScratch& patch, CnnScratch& scratch,
+// confidence (cross-validation: app/perception/EXPERIMENTS.md). Where the
+// MLPs call the candidate a reject at `skip_networks_at` or more, their
+// probabilities are returned as they are and the networks do not run: most
+// candidates are such rejects, and against that a marking class would need
+// the networks' near-certainty (on the simulator's test sets none of those
+// candidates changed class at 0.8). Returns the most probable class. No
+// allocation.
+int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, float skip_networks_at,
+             const Features& features, const PatchScratch& patch, CnnScratch& scratch,
              std::array<float, kClassifierOutputs>& probabilities);
 
 // The log of a probability as the blend takes it: floored at

@@ -856,8 +856,9 @@ void MarkingDetector::classify(Candidate& candidate) {
                      candidate.length_m, candidate.width_m, candidate.parts};
   compute_features(bev_, mask_, box, scratch_, candidate.features);
   std::array<float, kClassifierOutputs> probabilities;
-  candidate.predicted = perception::classify(*model_, cnn_, config_.cnn_share, candidate.features,
-                                             scratch_, cnn_scratch_, probabilities);
+  candidate.predicted =
+      perception::classify(*model_, cnn_, config_.cnn_share, config_.skip_networks_at,
+                           candidate.features, scratch_, cnn_scratch_, probabilities);
   candidate.score = probabilities[candidate.predicted];
 }
 

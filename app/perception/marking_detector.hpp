@@ -160,6 +160,9 @@ struct DetectorConfig {
   // those compiled in (model/marking_cnn.cpp). cnn_share 0: MLPs alone.
   const CnnModel* cnn = nullptr;
   float cnn_share = 0.5f;
+  // The networks are not run where the MLPs call a candidate a reject with
+  // at least this probability (marking_classifier.hpp); above 1: always run.
+  float skip_networks_at = 0.9f;
 };
 
 // Reads the optional detector_* keys of a calibration file (OpenCV YAML), so

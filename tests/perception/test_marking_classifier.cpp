@@ -59,6 +59,8 @@ std::vector<float> random_values(std::mt19937& rng, int n, float scale) {
   return v;
 }
 
+constexpr float kAlwaysRun = 2.0f;  // no MLP reject probability reaches it: the networks always run
+
 }  // namespace
 
 TEST_CASE("the network's probabilities are those of its layers written out plainly") {
@@ -135,7 +137,7 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   // (their geometric mean, normalised).
   std::array<float, kClassifierOutputs> from_net, from_mlps, blended;
   CnnScratch scratch;
-  const int best = classify(builtin_marking_model(), &one, 1.0f, features, patch, scratch, from_net);
+  const int best = classify(builtin_marking_model(), &one, 1.0f, kAlwaysRun, features, patch, scratch, from_net);
   int expected_best = 0;
   for (int k = 0; k < kClassifierOutputs; ++k) {
     CHECK(from_net[static_cast<std::size_t>(k)] ==
@@ -144,7 +146,7 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   }
   CHECK(best == expected_best);
   classify(builtin_marking_model(), features, from_mlps);
-  const int blended_best = classify(builtin_marking_model(), &one, 0.5f, features, patch, scratch, blended);
+  const int blended_best = classify(builtin_marking_model(), &one, 0.5f, kAlwaysRun, features, patch, scratch, blended);
   std::array<double, kClassifierOutputs> product;
   double product_total = 0.0;
   for (std::size_t k = 0; k < product.size(); ++k) {
@@ -156,11 +158,11 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   CHECK(blended_best == static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
   // Two networks share the network's half alike: mlp^(1/2) net^(1/4) other^(1/4).
   std::array<float, kClassifierOutputs> from_other;
-  classify(builtin_marking_model(), &two, 0.0f, features, patch, scratch, blended);
+  classify(builtin_marking_model(), &two, 0.0f, kAlwaysRun, features, patch, scratch, blended);
   CHECK(blended == from_mlps);
   const CnnModel other_alone{1, {other}};
-  classify(builtin_marking_model(), &other_alone, 1.0f, features, patch, scratch, from_other);
-  const int ensemble_best = classify(builtin_marking_model(), &two, 0.5f, features, patch, scratch, blended);
+  classify(builtin_marking_model(), &other_alone, 1.0f, kAlwaysRun, features, patch, scratch, from_other);
+  const int ensemble_best = classify(builtin_marking_model(), &two, 0.5f, kAlwaysRun, features, patch, scratch, blended);
   product_total = 0.0;
   for (std::size_t k = 0; k < product.size(); ++k) {
     product[k] = std::sqrt(std::max(double{from_mlps[k]}, 1e-12)) *
@@ -170,7 +172,14 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   for (std::size_t k = 0; k < product.size(); ++k)
     CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
   CHECK(ensemble_best == static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
+  // The networks skipped where the MLPs' reject reaches the bound: the MLPs' own.
+  const float mlp_reject = from_mlps[static_cast<std::size_t>(kRejectClass)];
+  classify(builtin_marking_model(), &two, 0.5f, mlp_reject, features, patch, scratch, blended);
+  CHECK(blended == from_mlps);
+  classify(builtin_marking_model(), &two, 0.5f, std::nextafter(mlp_reject, 2.0f), features, patch, scratch,
+           blended);
+  CHECK(blended != from_mlps);
   // No network, or share 0: the MLPs alone.
-  classify(builtin_marking_model(), nullptr, 0.5f, features, patch, scratch, blended);
+  classify(builtin_marking_model(), nullptr, 0.5f, kAlwaysRun, features, patch, scratch, blended);
   CHECK(blended == from_mlps);
 }

@@ -1079,15 +1079,17 @@ int main(int argc, char** argv) {
     // The probabilities written by --dump (MLPs, the first DIR) and
     // train_cnn.py (a network per further DIR), blended as the detector
     // blends them (their geometric mean, normalised; the networks share
-    // cnn_share alike). One DIR alone is judged as it is.
+    // cnn_share alike; the MLPs' own where they call a candidate a reject
+    // at skip_networks_at or more). One DIR alone is judged as it is.
     const auto judge_with = [&](const ImageSet& set, const std::string& name,
                                 std::span<const float> thresholds, std::span<Score> by_threshold) {
-      std::vector<float> blended, storage;
+      std::vector<float> blended, storage, mlps;
       const float cnn_share = scores_dirs.size() > 1 ? DetectorConfig{}.cnn_share : 0.0f;
       for (std::size_t d = 0; d < scores_dirs.size(); ++d) {
         const float share =
             d == 0 ? 1.0f - cnn_share : cnn_share / static_cast<float>(scores_dirs.size() - 1);
         read_probabilities(set, scores_dirs[d] + "/" + name + ".probs.f32", storage);
+        if (d == 0) mlps = storage;
         if (blended.empty()) blended.assign(storage.size(), 0.0f);
         for (std::size_t i = 0; i < storage.size(); ++i) blended[i] += share * blend_log(storage[i]);
       }
@@ -1095,6 +1097,8 @@ int main(int argc, char** argv) {
         std::array<float, kClassifierOutputs> sample;
         std::copy_n(blended.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
         softmax_in_place(sample);
+        if (mlps[at + kRejectClass] >= DetectorConfig{}.skip_networks_at)
+          std::copy_n(mlps.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
         std::copy(sample.begin(), sample.end(), blended.begin() + static_cast<std::ptrdiff_t>(at));
       }
       evaluate(set, by_probabilities(set, blended), std::vector<bool>(set.images.size(), true),
@@ -1125,8 +1129,9 @@ int main(int argc, char** argv) {
       patch.grey = s.grey;
       for (std::size_t i = 0; i < patch.paint.size(); ++i) patch.paint[i] = s.paint[i] * (1.0f / 255.0f);
       CnnScratch scratch;
-      return classify(builtin_marking_model(), &builtin_marking_cnn(), DetectorConfig{}.cnn_share,
-                      s.features, patch, scratch, p);
+      const DetectorConfig defaults;
+      return classify(builtin_marking_model(), &builtin_marking_cnn(), defaults.cnn_share,
+                      defaults.skip_networks_at, s.features, patch, scratch, p);
     };
     if (!real_dir.empty()) {
       print_coverage(sets.front());
