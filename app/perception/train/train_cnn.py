@@ -234,12 +234,13 @@ def main():
         weight = class_weight[y] * np.where(real[use], args.real_weight, 1.0)
         standard = lambda s: torch.from_numpy(((s - mean) * inv_std).astype(np.float32))
         print(f"fold {name}: {y.size} training candidates", flush=True)
+        # The fold's training tensors, gathered once for all its seeds.
+        fold_data = (image[torch.from_numpy(np.flatnonzero(use))], standard(shape[use]),
+                     torch.from_numpy(y.astype(np.int64)), torch.from_numpy(weight.astype(np.float32)))
         models = []
         for seed in seeds:
             started = time.time()
-            model = train(torch, image[torch.from_numpy(np.flatnonzero(use))], standard(shape[use]),
-                          torch.from_numpy(y.astype(np.int64)), torch.from_numpy(weight.astype(np.float32)),
-                          seed, args)
+            model = train(torch, *fold_data, seed, args)
             print(f"fold {name}, seed {seed}: {time.time() - started:.0f} s", flush=True)
             out_dir = out_dirs[seed]
             if held_out >= 0:
@@ -253,6 +254,7 @@ def main():
                 probabilities(torch, model, torch.from_numpy(test_image), standard(test_shape)).tofile(
                     os.path.join(out_dir, test + ".probs.f32"))
             models.append(model)
+        del fold_data
         if models and args.out:
             command = "app/perception/train/train_cnn.py " + " ".join(
                 a if not a.startswith("/") else os.path.relpath(a) for a in sys.argv[1:])

@@ -1084,7 +1084,9 @@ int main(int argc, char** argv) {
     const auto judge_with = [&](const ImageSet& set, const std::string& name,
                                 std::span<const float> thresholds, std::span<Score> by_threshold) {
       std::vector<float> blended, storage, mlps;
-      const float cnn_share = scores_dirs.size() > 1 ? DetectorConfig{}.cnn_share : 0.0f;
+      const DetectorConfig defaults;
+      const bool networks = scores_dirs.size() > 1;
+      const float cnn_share = networks ? defaults.cnn_share : 0.0f;
       for (std::size_t d = 0; d < scores_dirs.size(); ++d) {
         const float share =
             d == 0 ? 1.0f - cnn_share : cnn_share / static_cast<float>(scores_dirs.size() - 1);
@@ -1097,7 +1099,7 @@ int main(int argc, char** argv) {
         std::array<float, kClassifierOutputs> sample;
         std::copy_n(blended.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
         softmax_in_place(sample);
-        if (mlps[at + kRejectClass] >= DetectorConfig{}.skip_networks_at)
+        if (networks && mlps[at + kRejectClass] >= defaults.skip_networks_at)
           std::copy_n(mlps.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
         std::copy(sample.begin(), sample.end(), blended.begin() + static_cast<std::ptrdiff_t>(at));
       }
