@@ -142,20 +142,32 @@ bool cnn_is_usable(const CnnModel& cnn) {
   return true;
 }
 
+bool networks_needed(const std::array<float, kClassifierOutputs>& mlp, float cnn_share,
+                     float skip_networks_at) {
+  return cnn_share > 0.0f && mlp[kRejectClass] < skip_networks_at;
+}
+
+int blend_with_networks(std::array<float, kClassifierOutputs>& probabilities,
+                        std::span<const std::array<float, kClassifierOutputs>> networks, float cnn_share) {
+  const float member_share = cnn_share / static_cast<float>(networks.size());
+  for (int k = 0; k < kClassifierOutputs; ++k) {
+    float log_probability = (1.0f - cnn_share) * blend_log(probabilities[k]);
+    for (const auto& from_network : networks) log_probability += member_share * blend_log(from_network[k]);
+    probabilities[k] = log_probability;
+  }
+  return softmax_in_place(probabilities);
+}
+
 int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, float skip_networks_at,
              const Features& features, const PatchScratch& patch, CnnScratch& scratch,
              std::array<float, kClassifierOutputs>& probabilities) {
   const int mlp_class = classify(model, features, probabilities);
-  if (cnn == nullptr || cnn_share <= 0.0f || probabilities[kRejectClass] >= skip_networks_at)
-    return mlp_class;
-  for (float& p : probabilities) p = (1.0f - cnn_share) * blend_log(p);
-  const float member_share = cnn_share / static_cast<float>(cnn->members);
-  std::array<float, kClassifierOutputs> from_cnn;
-  for (int m = 0; m < cnn->members; ++m) {
-    cnn_probabilities(cnn->nets[m], features, patch, scratch, from_cnn);
-    for (int k = 0; k < kClassifierOutputs; ++k) probabilities[k] += member_share * blend_log(from_cnn[k]);
-  }
-  return softmax_in_place(probabilities);
+  if (cnn == nullptr || !networks_needed(probabilities, cnn_share, skip_networks_at)) return mlp_class;
+  std::array<std::array<float, kClassifierOutputs>, kMaxCnnMembers> from_networks;
+  for (int m = 0; m < cnn->members; ++m)
+    cnn_probabilities(cnn->nets[m], features, patch, scratch, from_networks[static_cast<std::size_t>(m)]);
+  return blend_with_networks(probabilities,
+                             std::span(from_networks).first(static_cast<std::size_t>(cnn->members)), cnn_share);
 }
 
 float blend_log(float probability) { return std::log(std::max(probability, kBlendProbabilityFloor)); }

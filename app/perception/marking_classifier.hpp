@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 
 #include "perception/marking_classes.hpp"
 #include "perception/marking_features.hpp"
@@ -132,6 +133,16 @@ bool cnn_is_usable(const CnnModel& cnn);
 int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, float skip_networks_at,
              const Features& features, const PatchScratch& patch, CnnScratch& scratch,
              std::array<float, kClassifierOutputs>& probabilities);
+
+// The two steps of the blend above, for callers that hold the
+// probabilities already (markloop-train --scores): whether the networks
+// are to run on a candidate the MLPs gave `mlp`, and the blend itself,
+// in place, of the MLPs' probabilities with one set per network (at least
+// one). blend_with_networks returns the most probable class.
+bool networks_needed(const std::array<float, kClassifierOutputs>& mlp, float cnn_share,
+                     float skip_networks_at);
+int blend_with_networks(std::array<float, kClassifierOutputs>& probabilities,
+                        std::span<const std::array<float, kClassifierOutputs>> networks, float cnn_share);
 
 // The log of a probability as the blend takes it: floored at
 // kBlendProbabilityFloor, so that one model's zero (a softmax underflowing)

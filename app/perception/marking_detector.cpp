@@ -916,6 +916,8 @@ bool load_detector_config(const std::string& path, DetectorConfig& config, std::
         {"detector_local_window_m", &c.local_window_m, 0.1f, 20.0f},
         {"detector_min_score", &c.min_score, 0.0f, 1.0f},
         {"detector_horizon_gain", &c.horizon_gain, 0.001f, 1.0f},
+        {"detector_cnn_share", &c.cnn_share, 0.0f, 1.0f},
+        {"detector_skip_networks_at", &c.skip_networks_at, 0.0f, 2.0f},
     };
     for (const Key& key : keys) {
       const cv::FileNode node = fs[key.name];

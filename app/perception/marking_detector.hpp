@@ -157,11 +157,13 @@ struct DetectorConfig {
   // Classifier weights; nullptr: the model compiled in (model/marking_model.cpp).
   const MlpModel* model = nullptr;
   // The convolutional networks blended in (marking_classifier.hpp); nullptr:
-  // those compiled in (model/marking_cnn.cpp). cnn_share 0: MLPs alone.
+  // those compiled in (model/marking_cnn.cpp). cnn_share 0: MLPs alone
+  // (detector_cnn_share).
   const CnnModel* cnn = nullptr;
   float cnn_share = 0.5f;
   // The networks are not run where the MLPs call a candidate a reject with
-  // at least this probability (marking_classifier.hpp); above 1: always run.
+  // at least this probability (marking_classifier.hpp); above 1: always run
+  // (detector_skip_networks_at).
   float skip_networks_at = 0.9f;
 };
 

@@ -770,5 +770,12 @@ TEST_CASE("detector config: bad values are reported with the file") {
   CHECK(error.find("detector_guard_m") != std::string::npos);
   REQUIRE(load("detector_guard_m", 0.5));
   CHECK(config.guard_m == Catch::Approx(0.5));
+  CHECK_FALSE(load("detector_cnn_share", 1.5));
+  CHECK(error.find("detector_cnn_share") != std::string::npos);
+  CHECK_FALSE(load("detector_skip_networks_at", "high"));
+  CHECK(error == path + ": detector_skip_networks_at must be a number");
+  REQUIRE(load("detector_cnn_share", 0.7, "detector_skip_networks_at", 2.0));
+  CHECK(config.cnn_share == Catch::Approx(0.7));
+  CHECK(config.skip_networks_at == Catch::Approx(2.0));
   CHECK_FALSE(load_detector_config("/nonexistent/camera.yaml", config, error));
 }

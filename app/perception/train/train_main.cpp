@@ -1078,29 +1078,25 @@ int main(int argc, char** argv) {
   if (!scores_dirs.empty()) {
     // The probabilities written by --dump (MLPs, the first DIR) and
     // train_cnn.py (a network per further DIR), blended as the detector
-    // blends them (their geometric mean, normalised; the networks share
-    // cnn_share alike; the MLPs' own where they call a candidate a reject
-    // at skip_networks_at or more). One DIR alone is judged as it is.
+    // blends them (blend_with_networks, where networks_needed). One DIR
+    // alone is judged as it is.
     const auto judge_with = [&](const ImageSet& set, const std::string& name,
                                 std::span<const float> thresholds, std::span<Score> by_threshold) {
-      std::vector<float> blended, storage, mlps;
+      std::vector<std::vector<float>> by_dir(scores_dirs.size());
+      for (std::size_t d = 0; d < scores_dirs.size(); ++d)
+        read_probabilities(set, scores_dirs[d] + "/" + name + ".probs.f32", by_dir[d]);
       const DetectorConfig defaults;
-      const bool networks = scores_dirs.size() > 1;
-      const float cnn_share = networks ? defaults.cnn_share : 0.0f;
-      for (std::size_t d = 0; d < scores_dirs.size(); ++d) {
-        const float share =
-            d == 0 ? 1.0f - cnn_share : cnn_share / static_cast<float>(scores_dirs.size() - 1);
-        read_probabilities(set, scores_dirs[d] + "/" + name + ".probs.f32", storage);
-        if (d == 0) mlps = storage;
-        if (blended.empty()) blended.assign(storage.size(), 0.0f);
-        for (std::size_t i = 0; i < storage.size(); ++i) blended[i] += share * blend_log(storage[i]);
-      }
+      std::vector<float> blended = by_dir.front();
+      std::vector<std::array<float, kClassifierOutputs>> networks(by_dir.size() - 1);
       for (std::size_t at = 0; at < blended.size(); at += kClassifierOutputs) {
         std::array<float, kClassifierOutputs> sample;
         std::copy_n(blended.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
-        softmax_in_place(sample);
-        if (networks && mlps[at + kRejectClass] >= defaults.skip_networks_at)
-          std::copy_n(mlps.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
+        if (networks.empty() || !networks_needed(sample, defaults.cnn_share, defaults.skip_networks_at))
+          continue;
+        for (std::size_t m = 0; m < networks.size(); ++m)
+          std::copy_n(by_dir[m + 1].begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs,
+                      networks[m].begin());
+        blend_with_networks(sample, networks, defaults.cnn_share);
         std::copy(sample.begin(), sample.end(), blended.begin() + static_cast<std::ptrdiff_t>(at));
       }
       evaluate(set, by_probabilities(set, blended), std::vector<bool>(set.images.size(), true),
