@@ -83,6 +83,34 @@ def cut_out(torch, image, probability, generator):
     return image.masked_fill(erase.unsqueeze(1), 0.0)
 
 
+def jitter(torch, image, generator):
+    """Appearance and placement noise, one draw per patch: the patch moved by
+    up to 2 pixels each way (edges repeated), its grey blurred in half the
+    patches and given noise, its paint grown or shrunk by a pixel in a
+    quarter each, as another camera, exposure, wear or paint threshold would
+    change a marking."""
+    n = image.shape[0]
+    f = torch.nn.functional
+    padded = f.pad(image, (2, 2, 2, 2), mode="replicate")
+    dy = torch.randint(0, 5, (n,), generator=generator)
+    dx = torch.randint(0, 5, (n,), generator=generator)
+    rows = (dy.view(n, 1, 1) + torch.arange(ROWS).view(1, ROWS, 1)).expand(n, ROWS, COLS)
+    cols = (dx.view(n, 1, 1) + torch.arange(COLS).view(1, 1, COLS)).expand(n, ROWS, COLS)
+    flat = (rows * (COLS + 4) + cols).view(n, 1, ROWS * COLS).expand(n, 2, ROWS * COLS)
+    moved = padded.flatten(2).gather(2, flat).view(n, 2, ROWS, COLS)
+    grey, paint = moved[:, :1], moved[:, 1:]
+    blur = torch.rand((n, 1, 1, 1), generator=generator) < 0.5
+    grey = torch.where(blur, f.avg_pool2d(f.pad(grey, (1, 1, 1, 1), mode="replicate"), 3, 1), grey)
+    grey = grey + torch.randn(grey.shape, generator=generator) * (
+        0.3 * torch.rand((n, 1, 1, 1), generator=generator))
+    grey = (grey - grey.mean((2, 3), keepdim=True)) / (grey.std((2, 3), keepdim=True) + 1e-3)
+    which = torch.rand((n, 1, 1, 1), generator=generator)
+    grown = f.max_pool2d(paint, 3, 1, 1)
+    shrunk = -f.max_pool2d(-paint, 3, 1, 1)
+    paint = torch.where(which < 0.25, grown, torch.where(which < 0.5, shrunk, paint))
+    return torch.cat([grey, paint], 1)
+
+
 def train(torch, image, shape, labels, weights, seed, args):
     """Adam on class-weighted cross-entropy; returns the running average of
     the weights over the last steps (as markloop-train's --weight-average)."""
@@ -99,6 +127,8 @@ def train(torch, image, shape, labels, weights, seed, args):
         for start in range(0, n, args.batch):
             idx = order[start:start + args.batch]
             batch = image[idx] if args.cutout <= 0 else cut_out(torch, image[idx], args.cutout, generator)
+            if args.jitter:
+                batch = jitter(torch, batch, generator)
             loss = (torch.nn.functional.cross_entropy(model(batch, shape[idx]), labels[idx],
                                                       reduction="none") * weights[idx]).mean()
             optimiser.zero_grad()
@@ -188,6 +218,8 @@ def main():
     ap.add_argument("--reject-weight", type=float, default=2.5)
     ap.add_argument("--cutout", type=float, default=0.0,
                     help="share of training patches with a random rectangle erased (default %(default)s)")
+    ap.add_argument("--jitter", action="store_true",
+                    help="move, blur and add noise to the training patches, grow or shrink their paint")
     ap.add_argument("--dropout", type=float, default=0.0,
                     help="dropout on the hidden layer while training (default %(default)s)")
     ap.add_argument("--seeds", default="1,2",
