@@ -86,9 +86,10 @@ def cut_out(torch, image, probability, generator):
 def jitter(torch, image, generator):
     """Appearance and placement noise, one draw per patch: the patch moved by
     up to 2 pixels each way (edges repeated), its grey blurred in half the
-    patches and given noise, its paint grown or shrunk by a pixel in a
-    quarter each, as another camera, exposure, wear or paint threshold would
-    change a marking."""
+    patches and given noise, then standardised again (zero mean, unit
+    spread, as compute_features() gives it), its paint grown or shrunk by a
+    pixel in a quarter each, as another camera, exposure, wear or paint
+    threshold would change a marking. Tried and not adopted (EXPERIMENTS.md)."""
     n = image.shape[0]
     f = torch.nn.functional
     padded = f.pad(image, (2, 2, 2, 2), mode="replicate")
