@@ -138,6 +138,8 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   road_integral_.create(rows + 1, cols + 1, CV_32SC2);
   road_integral_.setTo(cv::Scalar::all(0));
   at_edge_.create(rows, cols, CV_8UC1);
+  unseen_kind_.create(rows, cols, CV_8UC1);
+  unseen_kind_across_.create(rows, cols, CV_8UC1);
   update_view_masks();
   // The road's horizon straight ahead: where a point 100 km ahead appears.
   Eigen::Vector2d far_ahead;
@@ -178,22 +180,38 @@ void MarkingDetector::update_view_masks() {
   }
   // Pixels on the view's border or next to (or on) one the camera does not
   // see: paint there may go on beyond what is seen. Near only where every
-  // unseen neighbour is level or below and unseen_below().
-  const auto unseen = [&](int r, int c) { return valid.ptr<std::uint8_t>(r)[c] == 0; };
+  // unseen neighbour is level or below and unseen_below(). Run on every
+  // move of the view (the horizon measured), so in passes over rows: each
+  // pixel's kind of unseen, ORed across with its neighbours', then down.
   for (int r = 0; r < rows; ++r) {
+    const std::uint8_t* v = valid.ptr<std::uint8_t>(r);
+    std::uint8_t* kind = unseen_kind_.ptr<std::uint8_t>(r);
+    for (int c = 0; c < cols; ++c)
+      kind[c] = v[c] != 0 ? 0 : birdseye_.unseen_below(r, c) ? kNearEdge : kOtherEdge;
+    std::uint8_t* across = unseen_kind_across_.ptr<std::uint8_t>(r);
+    across[0] = static_cast<std::uint8_t>(kind[0] | kind[std::min(cols - 1, 1)]);
+    for (int c = 1; c < cols - 1; ++c)
+      across[c] = static_cast<std::uint8_t>(kind[c - 1] | kind[c] | kind[c + 1]);
+    across[cols - 1] = static_cast<std::uint8_t>(kind[std::max(0, cols - 2)] | kind[cols - 1]);
+  }
+  for (int r = 0; r < rows; ++r) {
+    // The first and last rows stand in for the missing neighbour row: the
+    // first is all border anyway, and ORing the last with itself adds nothing.
+    const std::uint8_t* level = unseen_kind_across_.ptr<std::uint8_t>(r);
+    const std::uint8_t* above = unseen_kind_across_.ptr<std::uint8_t>(std::max(0, r - 1));
+    const std::uint8_t* below = unseen_kind_across_.ptr<std::uint8_t>(std::min(rows - 1, r + 1));
+    const bool border_row = r == 0;
+    const std::uint8_t near_row = r == rows - 1 ? kNearEdge : 0;
     std::uint8_t* out = at_edge_.ptr<std::uint8_t>(r);
     for (int c = 0; c < cols; ++c) {
-      bool other = r == 0 || c == 0 || c == cols - 1;
-      bool near = r == rows - 1;
-      for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr)
-        for (int cc = std::max(0, c - 1); cc <= std::min(cols - 1, c + 1); ++cc) {
-          if (!unseen(rr, cc)) continue;
-          const bool below = rr >= r && birdseye_.unseen_below(rr, cc);
-          near = near || below;
-          other = other || !below;
-        }
+      // An unseen pixel in the row above is never below this one.
+      const std::uint8_t level_or_below = level[c] | below[c];
+      const bool other = border_row || above[c] != 0 || (level_or_below & kOtherEdge) != 0;
+      const bool near = ((level_or_below | near_row) & kNearEdge) != 0;
       out[c] = other ? kOtherEdge : near ? kNearEdge : 0;
     }
+    out[0] = kOtherEdge;
+    out[cols - 1] = kOtherEdge;
   }
 }
 
