@@ -31,10 +31,7 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
   weight_x_.assign(n, 0);
   weight_y_.assign(n, 0);
   valid_ = cv::Mat::zeros(rows_, cols_, CV_8UC1);
-  hidden_from_.resize(static_cast<std::size_t>(std::max(0, source_cols_ - 1)));
-  for (std::size_t u = 0; u < hidden_from_.size(); ++u)
-    hidden_from_[u] = std::min(hidden_below.row_at(static_cast<float>(u)),
-                               hidden_below.row_at(static_cast<float>(u + 1)));
+  hidden_from_.assign(n, 0.0f);
   for (int r = 0; r < rows_; ++r) {
     for (int c = 0; c < cols_; ++c) {
       Eigen::Vector2d pixel;
@@ -53,6 +50,8 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
       source_col_[i] = static_cast<std::int16_t>(u);
       weight_x_[i] = static_cast<std::uint8_t>(std::min(255.0, std::floor((pixel.x() - u) * 256.0)));
       weight_y_[i] = static_cast<std::uint8_t>(std::min(255.0, std::floor((pixel.y() - v) * 256.0)));
+      hidden_from_[i] = std::min(hidden_below.row_at(static_cast<float>(u)),
+                                 hidden_below.row_at(static_cast<float>(u + 1)));
     }
   }
   set_row_shift(0, 0);
@@ -61,18 +60,21 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
 void BirdsEyeView::set_row_shift(int rows, int outline_rows) {
   row_shift_ = rows;
   const float outline_shift = static_cast<float>(outline_rows);
-  for (int r = 0; r < rows_; ++r) {
-    std::uint8_t* valid = valid_.ptr<std::uint8_t>(r);
-    const std::size_t base = static_cast<std::size_t>(r) * cols_;
-    for (int c = 0; c < cols_; ++c) {
-      const std::size_t i = base + c;
-      const int v = calibrated_row_[i] == kNoSource ? -1 : calibrated_row_[i] + rows;
-      const bool seen = v >= 0 && v < source_rows_ - 1 &&
-                        static_cast<float>(v + 1) <
-                            hidden_from_[static_cast<std::size_t>(source_col_[i])] + outline_shift;
-      source_row_[i] = static_cast<std::int16_t>(seen ? v : -1);
-      valid[c] = seen ? 255 : 0;
-    }
+  // Run on every move of the view: one branchless pass, which vectorises.
+  std::uint8_t* valid = valid_.ptr<std::uint8_t>(0);  // continuous: created here
+  const std::size_t n = source_row_.size();
+  const std::int16_t* calibrated_row = calibrated_row_.data();
+  const float* hidden_from = hidden_from_.data();
+  std::int16_t* source_row = source_row_.data();
+  const int last_row = source_rows_ - 1;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int calibrated = calibrated_row[i];
+    const int v = calibrated + rows;
+    const int seen = static_cast<int>(calibrated != kNoSource) & static_cast<int>(v >= 0) &
+                     static_cast<int>(v < last_row) &
+                     static_cast<int>(static_cast<float>(v + 1) < hidden_from[i] + outline_shift);
+    source_row[i] = static_cast<std::int16_t>(seen * (v + 1) - 1);  // v, or -1 unseen
+    valid[i] = static_cast<std::uint8_t>(seen * 255);
   }
 }
 

@@ -89,7 +89,8 @@ class BirdsEyeView {
   static constexpr std::int16_t kNoSource = INT16_MIN;
   std::vector<std::int16_t> calibrated_row_;
   std::vector<std::int16_t> source_row_, source_col_;
-  // Per image column: the first row of the bonnet under u or u + 1.
+  // Per output pixel: the first row of the bonnet under its source columns
+  // u and u + 1 (read per pixel, so that set_row_shift() has no lookup).
   std::vector<float> hidden_from_;
   int row_shift_ = 0;
   std::vector<std::uint8_t> weight_x_, weight_y_;
