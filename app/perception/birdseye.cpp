@@ -32,6 +32,11 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
   weight_y_.assign(n, 0);
   valid_ = cv::Mat::zeros(rows_, cols_, CV_8UC1);
   hidden_from_.assign(n, 0.0f);
+  // Per image column: the first row of the bonnet under u or u + 1.
+  std::vector<float> hidden_from_column(static_cast<std::size_t>(std::max(0, source_cols_ - 1)));
+  for (std::size_t u = 0; u < hidden_from_column.size(); ++u)
+    hidden_from_column[u] = std::min(hidden_below.row_at(static_cast<float>(u)),
+                                     hidden_below.row_at(static_cast<float>(u + 1)));
   for (int r = 0; r < rows_; ++r) {
     for (int c = 0; c < cols_; ++c) {
       Eigen::Vector2d pixel;
@@ -50,8 +55,7 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
       source_col_[i] = static_cast<std::int16_t>(u);
       weight_x_[i] = static_cast<std::uint8_t>(std::min(255.0, std::floor((pixel.x() - u) * 256.0)));
       weight_y_[i] = static_cast<std::uint8_t>(std::min(255.0, std::floor((pixel.y() - v) * 256.0)));
-      hidden_from_[i] = std::min(hidden_below.row_at(static_cast<float>(u)),
-                                 hidden_below.row_at(static_cast<float>(u + 1)));
+      hidden_from_[i] = hidden_from_column[static_cast<std::size_t>(u)];
     }
   }
   set_row_shift(0, 0);

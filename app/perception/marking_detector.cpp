@@ -138,7 +138,7 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   road_integral_.create(rows + 1, cols + 1, CV_32SC2);
   road_integral_.setTo(cv::Scalar::all(0));
   at_edge_.create(rows, cols, CV_8UC1);
-  unseen_kind_.create(rows, cols, CV_8UC1);
+  unseen_kind_row_.assign(static_cast<std::size_t>(cols), 0);
   unseen_kind_across_.create(rows, cols, CV_8UC1);
   update_view_masks();
   // The road's horizon straight ahead: where a point 100 km ahead appears.
@@ -185,7 +185,7 @@ void MarkingDetector::update_view_masks() {
   // pixel's kind of unseen, ORed across with its neighbours', then down.
   for (int r = 0; r < rows; ++r) {
     const std::uint8_t* v = valid.ptr<std::uint8_t>(r);
-    std::uint8_t* kind = unseen_kind_.ptr<std::uint8_t>(r);
+    std::uint8_t* kind = unseen_kind_row_.data();
     for (int c = 0; c < cols; ++c)
       kind[c] = v[c] != 0 ? 0 : birdseye_.unseen_below(r, c) ? kNearEdge : kOtherEdge;
     std::uint8_t* across = unseen_kind_across_.ptr<std::uint8_t>(r);

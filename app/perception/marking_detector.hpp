@@ -313,10 +313,11 @@ class MarkingDetector {
   // a quadrant's sum and count share cache lines.
   cv::Mat road_pixels_, road_integral_;
   cv::Mat at_edge_;         // CV_8UC1: kNearEdge / kOtherEdge where a pixel borders what is not seen
-  // CV_8UC1, for update_view_masks(): per pixel the kind of unseen it is
-  // (kNearEdge: below, kOtherEdge: elsewhere, 0: seen), and those of the
-  // pixel and its left and right neighbours ORed.
-  cv::Mat unseen_kind_, unseen_kind_across_;
+  // For update_view_masks(): one row's kind of unseen per pixel (kNearEdge:
+  // below, kOtherEdge: elsewhere, 0: seen), and per pixel (CV_8UC1) those of
+  // it and its left and right neighbours ORed.
+  std::vector<std::uint8_t> unseen_kind_row_;
+  cv::Mat unseen_kind_across_;
   std::vector<std::int16_t> run_above_;     // paint run length down to each pixel
   std::vector<std::int16_t> run_below_;     // ... and from it downwards
   std::vector<std::int32_t> pixel_labels_;  // provisional label per pixel, -1 none
