@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "cli/cli.hpp"
+#include "io/still_image.hpp"
 #include "perception/camera_model.hpp"
 #include "perception/marking_classes.hpp"
 #include "perception/marking_classifier.hpp"
@@ -176,15 +177,9 @@ int main(int argc, char** argv) {
       ++failures;
       continue;
     }
-    cv::Mat grey;
-    try {
-      grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
-    } catch (const std::exception& e) {
-      grey.release();
-    }
+    const cv::Mat grey = markloop::io::read_grey_still(path, error);
     if (grey.empty()) {
-      std::fprintf(stderr, "markloop-detect: %s: cannot read as an image (PNG or JPEG)\n",
-                   path.c_str());
+      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), error.c_str());
       ++failures;
       continue;
     }

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # markloop-detect --view: one PNG per image, the bird's-eye view at twice
-# its size, and a clear refusal when the directory cannot be made.
+# its size, a truncated image refused while the others run, and a clear
+# refusal when the directory cannot be made.
 set -euo pipefail
 detect=$1 sim=$2 work=$3
 rm -rf "$work" && mkdir -p "$work"
@@ -24,6 +25,18 @@ for image in "${images[@]}"; do
     echo "ok   view of $(basename "$image"): ${width}x${height}"
   fi
 done
+# A truncated image is refused by name, with the reason, and the next one
+# still runs (its view written).
+head -c 3000 "${images[0]}" > "$work/cut.png"
+rm -rf "$work/view"
+check "truncated image refused" 1 "cut.png: truncated PNG" -- \
+  "$detect" --camera "$work/set/camera.yaml" --view "$work/view" "$work/cut.png" "${images[1]}"
+if [ -f "$work/view/$(basename "${images[1]}")" ] && [ ! -e "$work/view/cut.png" ]; then
+  echo "ok   the image after the truncated one still run"
+else
+  echo "FAIL the image after the truncated one: view missing, or a view of the truncated one"
+  failures=$((failures + 1))
+fi
 touch "$work/file"
 check "view directory refused" 2 "--view $work/file/views: cannot create the directory" -- \
   "$detect" --camera "$work/set/camera.yaml" --view "$work/file/views" "${images[0]}"

@@ -31,10 +31,10 @@
 #if defined(__SSE__)
 #include <xmmintrin.h>
 #endif
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "cli/cli.hpp"
+#include "io/still_image.hpp"
 #include "io/y4m.hpp"
 #include "perception/camera_model.hpp"
 #include "perception/marking_classes.hpp"
@@ -250,9 +250,9 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       }
       grey = video_grey;
     } else {
-      grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
+      grey = markloop::io::read_grey_still(path, error);
+      if (grey.empty()) fail(path + ": " + error);
     }
-    if (grey.empty()) fail(path + ": cannot read the image");
     if (grey.cols != camera->width() || grey.rows != camera->height())
       fail(path + ": image is " + std::to_string(grey.cols) + "x" + std::to_string(grey.rows) +
            ", the camera " + std::to_string(camera->width()) + "x" +

@@ -1,0 +1,107 @@
+// The host tools' still-image reader: whole PNG and JPEG files decode to
+// grey; truncated, foreign and missing ones are refused with the reason.
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <catch2/catch_test_macros.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "io/still_image.hpp"
+
+using markloop::io::check_still;
+using markloop::io::read_grey_still;
+using markloop::io::StillCheck;
+
+namespace {
+
+// A grey ramp with a bright bar: enough structure that JPEG keeps it.
+cv::Mat test_picture() {
+  cv::Mat image(48, 64, CV_8UC1);
+  for (int r = 0; r < image.rows; ++r)
+    for (int c = 0; c < image.cols; ++c)
+      image.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(r > 20 && r < 28 ? 230 : 2 * c);
+  return image;
+}
+
+std::vector<std::uint8_t> encoded(const char* extension) {
+  std::vector<std::uint8_t> bytes;
+  REQUIRE(cv::imencode(extension, test_picture(), bytes));
+  return bytes;
+}
+
+std::string written(const std::string& name, const std::vector<std::uint8_t>& bytes) {
+  const auto dir = std::filesystem::temp_directory_path() / "markloop-still-image-tests";
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / name).string();
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  return path;
+}
+
+std::vector<std::uint8_t> first(const std::vector<std::uint8_t>& bytes, std::size_t n) {
+  return {bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(n)};
+}
+
+}  // namespace
+
+TEST_CASE("Still image: whole PNG and JPEG files are complete and decode to grey") {
+  for (const char* extension : {".png", ".jpg"}) {
+    const auto bytes = encoded(extension);
+    CHECK(check_still(bytes) == StillCheck::kComplete);
+    std::string error;
+    const cv::Mat grey = read_grey_still(written(std::string("whole") + extension, bytes), error);
+    REQUIRE(error.empty());
+    REQUIRE(grey.type() == CV_8UC1);
+    CHECK(grey.size() == cv::Size(64, 48));
+    CHECK(grey.at<std::uint8_t>(24, 10) > 200);  // the bar
+  }
+}
+
+TEST_CASE("Still image: a PNG cut anywhere before its IEND chunk is truncated") {
+  const auto bytes = encoded(".png");
+  // IEND is the last 12 bytes; every cut from the signature on lacks it.
+  for (std::size_t n = 8; n < bytes.size(); n += 7)
+    CHECK(check_still(first(bytes, n)) == StillCheck::kTruncatedPng);
+  CHECK(check_still(first(bytes, bytes.size() - 1)) == StillCheck::kTruncatedPng);
+  std::string error;
+  CHECK(read_grey_still(written("cut.png", first(bytes, bytes.size() / 2)), error).empty());
+  CHECK(error == "truncated PNG (it ends before its IEND chunk)");
+}
+
+TEST_CASE("Still image: a chunk length past the end of the file is not trusted") {
+  auto bytes = encoded(".png");
+  bytes[8] = 0x7f;  // the IHDR chunk's length now claims about 2 GB
+  CHECK(check_still(bytes) == StillCheck::kTruncatedPng);
+}
+
+TEST_CASE("Still image: a JPEG without its end-of-image marker is truncated") {
+  const auto bytes = encoded(".jpg");
+  // libjpeg would decode these, the lost rows grey, with only a warning.
+  for (std::size_t n : {bytes.size() - 2, bytes.size() * 3 / 4, bytes.size() / 2, std::size_t{3}})
+    CHECK(check_still(first(bytes, n)) == StillCheck::kTruncatedJpeg);
+  std::string error;
+  CHECK(read_grey_still(written("cut.jpg", first(bytes, bytes.size() - 2)), error).empty());
+  CHECK(error == "truncated JPEG (no end-of-image marker after its image data)");
+
+  // Bytes after the end-of-image marker (some cameras append data) are fine.
+  auto padded = bytes;
+  padded.insert(padded.end(), {0x00, 0x11, 0x22});
+  CHECK(check_still(padded) == StillCheck::kComplete);
+}
+
+TEST_CASE("Still image: other files are refused with the reason") {
+  const std::vector<std::uint8_t> text = {'h', 'e', 'l', 'l', 'o', '\n'};
+  CHECK(check_still(text) == StillCheck::kUnknownFormat);
+  CHECK(check_still({}) == StillCheck::kUnknownFormat);
+  std::string error;
+  CHECK(read_grey_still(written("text.png", text), error).empty());
+  CHECK(error == "cannot read as an image (PNG or JPEG)");
+  CHECK(read_grey_still(written("empty.jpg", {}), error).empty());
+  CHECK(error == "cannot read as an image (PNG or JPEG)");
+  CHECK(read_grey_still("/nonexistent/still.png", error).empty());
+  CHECK(error == "cannot open: No such file or directory");
+}
