@@ -177,16 +177,10 @@ int main(int argc, char** argv) {
       ++failures;
       continue;
     }
-    const cv::Mat grey = markloop::io::read_grey_still(path, error);
+    const cv::Mat grey =
+        markloop::io::read_grey_still(path, {camera->width(), camera->height()}, error);
     if (grey.empty()) {
       std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), error.c_str());
-      ++failures;
-      continue;
-    }
-    if (grey.cols != camera->width() || grey.rows != camera->height()) {
-      std::fprintf(stderr, "markloop-detect: %s: image is %dx%d but the camera (%s) is %dx%d\n",
-                   path.c_str(), grey.cols, grey.rows, camera_path.c_str(), camera->width(),
-                   camera->height());
       ++failures;
       continue;
     }

@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <string>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
@@ -23,6 +24,18 @@ constexpr std::uintmax_t kMaxStillBytes = 256u << 20;
 
 std::uint32_t big_endian_u32(const std::uint8_t* p) {
   return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
+}
+
+std::uint32_t big_endian_u16(const std::uint8_t* p) { return (std::uint32_t{p[0]} << 8) | p[1]; }
+
+bool is_png(std::span<const std::uint8_t> bytes) {
+  return bytes.size() >= kPngSignature.size() &&
+         std::equal(kPngSignature.begin(), kPngSignature.end(), bytes.begin());
+}
+
+bool is_jpeg(std::span<const std::uint8_t> bytes) {
+  return bytes.size() >= 3 && bytes[0] == kJpegMarker && bytes[1] == kJpegStartOfImage &&
+         bytes[2] == kJpegMarker;
 }
 
 // Walks the chunks (length, type, data, CRC) up to IEND; every length is
@@ -51,19 +64,67 @@ bool jpeg_is_complete(std::span<const std::uint8_t> bytes) {
   return last_scan != 0 && last_end > last_scan;
 }
 
+// The IHDR chunk, which must come first: width and height, each at most
+// 2^31 - 1 by the PNG specification.
+cv::Size png_size(std::span<const std::uint8_t> bytes) {
+  const std::size_t at = kPngSignature.size();
+  if (bytes.size() < at + 16 || big_endian_u32(&bytes[at]) != 13 ||
+      std::memcmp(&bytes[at + 4], "IHDR", 4) != 0)
+    return {};
+  const std::uint32_t width = big_endian_u32(&bytes[at + 8]), height = big_endian_u32(&bytes[at + 12]);
+  if (width == 0 || height == 0 || width > 0x7fffffffu || height > 0x7fffffffu) return {};
+  return {static_cast<int>(width), static_cast<int>(height)};
+}
+
+// The segments before the first scan, each length checked against the
+// bytes left, up to the frame header (SOF0..SOF15 but DHT, JPG and DAC,
+// which share the range): precision, height, width. An EXIF thumbnail's
+// frame header lies inside its APP1 segment, which is skipped whole. A
+// height of 0 (given later by a DNL segment) is not trusted.
+cv::Size jpeg_size(std::span<const std::uint8_t> bytes) {
+  constexpr std::uint8_t kDefineHuffman = 0xc4, kExtension = 0xc8, kDefineArithmetic = 0xcc;
+  std::size_t at = 2;
+  while (at + 4 <= bytes.size()) {
+    if (bytes[at] != kJpegMarker) return {};
+    const std::uint8_t code = bytes[at + 1];
+    if (code == kJpegMarker) {  // a fill byte before the marker
+      ++at;
+      continue;
+    }
+    if (code == 0x01 || (code >= 0xd0 && code <= 0xd7)) {  // markers without a length
+      at += 2;
+      continue;
+    }
+    if (code == kJpegStartOfScan || code == kJpegEndOfImage) return {};
+    const std::size_t length = big_endian_u16(&bytes[at + 2]);
+    if (length < 2 || length > bytes.size() - at - 2) return {};
+    if (code >= 0xc0 && code <= 0xcf && code != kDefineHuffman && code != kExtension &&
+        code != kDefineArithmetic) {
+      if (length < 8) return {};
+      const std::uint32_t height = big_endian_u16(&bytes[at + 5]), width = big_endian_u16(&bytes[at + 7]);
+      if (width == 0 || height == 0) return {};
+      return {static_cast<int>(width), static_cast<int>(height)};
+    }
+    at += 2 + length;
+  }
+  return {};
+}
+
 }  // namespace
 
 StillCheck check_still(std::span<const std::uint8_t> bytes) {
-  if (bytes.size() >= kPngSignature.size() &&
-      std::equal(kPngSignature.begin(), kPngSignature.end(), bytes.begin()))
-    return png_is_complete(bytes) ? StillCheck::kComplete : StillCheck::kTruncatedPng;
-  if (bytes.size() >= 3 && bytes[0] == kJpegMarker && bytes[1] == kJpegStartOfImage &&
-      bytes[2] == kJpegMarker)
-    return jpeg_is_complete(bytes) ? StillCheck::kComplete : StillCheck::kTruncatedJpeg;
+  if (is_png(bytes)) return png_is_complete(bytes) ? StillCheck::kComplete : StillCheck::kTruncatedPng;
+  if (is_jpeg(bytes)) return jpeg_is_complete(bytes) ? StillCheck::kComplete : StillCheck::kTruncatedJpeg;
   return StillCheck::kUnknownFormat;
 }
 
-cv::Mat read_grey_still(const std::string& path, std::string& error) {
+cv::Size declared_still_size(std::span<const std::uint8_t> bytes) {
+  if (is_png(bytes)) return png_size(bytes);
+  if (is_jpeg(bytes)) return jpeg_size(bytes);
+  return {};
+}
+
+cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::string& error) {
   errno = 0;
   std::ifstream file(path, std::ios::binary | std::ios::ate);
   if (!file) {
@@ -94,13 +155,27 @@ cv::Mat read_grey_still(const std::string& path, std::string& error) {
       error = "truncated JPEG (no end-of-image marker after its image data)";
       return {};
   }
+  const cv::Size declared = declared_still_size(bytes);
+  if (declared.empty()) {
+    error = "corrupt PNG or JPEG (no image size in its header)";
+    return {};
+  }
+  if (declared != camera_size) {
+    error = "image is " + std::to_string(declared.width) + "x" + std::to_string(declared.height) +
+            ", the camera's " + std::to_string(camera_size.width) + "x" + std::to_string(camera_size.height);
+    return {};
+  }
   cv::Mat grey;
   try {
     grey = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
   } catch (const cv::Exception&) {
     grey.release();
   }
-  if (grey.empty()) error = "corrupt PNG or JPEG (cannot decode it)";
+  // A decoder that disagrees with the header is not trusted either.
+  if (grey.empty() || grey.size() != declared) {
+    error = "corrupt PNG or JPEG (cannot decode it)";
+    return {};
+  }
   return grey;
 }
 

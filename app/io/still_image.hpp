@@ -24,9 +24,17 @@ enum class StillCheck : std::uint8_t {
 // road; so the tools refuse such a file instead.
 StillCheck check_still(std::span<const std::uint8_t> bytes);
 
-// Reads `path`, checks it with check_still() and decodes it to 8-bit grey.
+// The width and height a complete PNG or JPEG declares in its header (PNG:
+// the IHDR chunk; JPEG: the frame header before the first scan), or an
+// empty size when it declares none that can be trusted.
+cv::Size declared_still_size(std::span<const std::uint8_t> bytes);
+
+// Reads `path`, checks it with check_still(), compares the size its header
+// declares with `camera_size` and only then decodes it to 8-bit grey: a
+// small file may declare a huge image (a "decompression bomb"), which would
+// otherwise be decoded into memory before the tool could refuse it.
 // On failure returns an empty Mat and sets `error` to what was wrong (without
 // the path: the caller adds it).
-cv::Mat read_grey_still(const std::string& path, std::string& error);
+cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::string& error);
 
 }  // namespace markloop::io

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # markloop-detect --view: one PNG per image, the bird's-eye view at twice
-# its size, a truncated image refused while the others run, and a clear
-# refusal when the directory cannot be made.
+# its size, a truncated image and one declaring a huge size refused while
+# the others run, and a clear refusal when the directory cannot be made.
 set -euo pipefail
 detect=$1 sim=$2 work=$3
 rm -rf "$work" && mkdir -p "$work"
@@ -37,6 +37,12 @@ else
   echo "FAIL the image after the truncated one: view missing, or a view of the truncated one"
   failures=$((failures + 1))
 fi
+# A small file whose header declares a huge image (a "decompression bomb")
+# is refused by its declared size, before anything is decoded.
+cp "${images[0]}" "$work/huge.png"
+printf '\x00\x00\x9c\x40\x00\x00\x9c\x40' | dd of="$work/huge.png" bs=1 seek=16 conv=notrunc status=none
+check "huge declared image refused" 1 "huge.png: image is 40000x40000, the camera's" -- \
+  "$detect" --camera "$work/set/camera.yaml" "$work/huge.png" "${images[1]}"
 touch "$work/file"
 check "view directory refused" 2 "--view $work/file/views: cannot create the directory" -- \
   "$detect" --camera "$work/set/camera.yaml" --view "$work/file/views" "${images[0]}"

@@ -13,14 +13,17 @@
 #include "io/still_image.hpp"
 
 using markloop::io::check_still;
+using markloop::io::declared_still_size;
 using markloop::io::read_grey_still;
 using markloop::io::StillCheck;
 
 namespace {
 
+const cv::Size kPictureSize(64, 48);
+
 // A grey ramp with a bright bar: enough structure that JPEG keeps it.
 cv::Mat test_picture() {
-  cv::Mat image(48, 64, CV_8UC1);
+  cv::Mat image(kPictureSize, CV_8UC1);
   for (int r = 0; r < image.rows; ++r)
     for (int c = 0; c < image.cols; ++c)
       image.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(r > 20 && r < 28 ? 230 : 2 * c);
@@ -53,10 +56,10 @@ TEST_CASE("Still image: whole PNG and JPEG files are complete and decode to grey
     const auto bytes = encoded(extension);
     CHECK(check_still(bytes) == StillCheck::kComplete);
     std::string error;
-    const cv::Mat grey = read_grey_still(written(std::string("whole") + extension, bytes), error);
+    const cv::Mat grey = read_grey_still(written(std::string("whole") + extension, bytes), kPictureSize, error);
     REQUIRE(error.empty());
     REQUIRE(grey.type() == CV_8UC1);
-    CHECK(grey.size() == cv::Size(64, 48));
+    CHECK(grey.size() == kPictureSize);
     CHECK(grey.at<std::uint8_t>(24, 10) > 200);  // the bar
   }
 }
@@ -68,7 +71,7 @@ TEST_CASE("Still image: a PNG cut anywhere before its IEND chunk is truncated") 
     CHECK(check_still(first(bytes, n)) == StillCheck::kTruncatedPng);
   CHECK(check_still(first(bytes, bytes.size() - 1)) == StillCheck::kTruncatedPng);
   std::string error;
-  CHECK(read_grey_still(written("cut.png", first(bytes, bytes.size() / 2)), error).empty());
+  CHECK(read_grey_still(written("cut.png", first(bytes, bytes.size() / 2)), kPictureSize, error).empty());
   CHECK(error == "truncated PNG (it ends before its IEND chunk)");
 }
 
@@ -84,7 +87,7 @@ TEST_CASE("Still image: a JPEG without its end-of-image marker is truncated") {
   for (std::size_t n : {bytes.size() - 2, bytes.size() * 3 / 4, bytes.size() / 2, std::size_t{3}})
     CHECK(check_still(first(bytes, n)) == StillCheck::kTruncatedJpeg);
   std::string error;
-  CHECK(read_grey_still(written("cut.jpg", first(bytes, bytes.size() - 2)), error).empty());
+  CHECK(read_grey_still(written("cut.jpg", first(bytes, bytes.size() - 2)), kPictureSize, error).empty());
   CHECK(error == "truncated JPEG (no end-of-image marker after its image data)");
 
   // Bytes after the end-of-image marker (some cameras append data) are fine.
@@ -98,10 +101,74 @@ TEST_CASE("Still image: other files are refused with the reason") {
   CHECK(check_still(text) == StillCheck::kUnknownFormat);
   CHECK(check_still({}) == StillCheck::kUnknownFormat);
   std::string error;
-  CHECK(read_grey_still(written("text.png", text), error).empty());
+  CHECK(read_grey_still(written("text.png", text), kPictureSize, error).empty());
   CHECK(error == "cannot read as an image (PNG or JPEG)");
-  CHECK(read_grey_still(written("empty.jpg", {}), error).empty());
+  CHECK(read_grey_still(written("empty.jpg", {}), kPictureSize, error).empty());
   CHECK(error == "cannot read as an image (PNG or JPEG)");
-  CHECK(read_grey_still("/nonexistent/still.png", error).empty());
+  CHECK(read_grey_still("/nonexistent/still.png", kPictureSize, error).empty());
   CHECK(error == "cannot open: No such file or directory");
+}
+
+TEST_CASE("Still image: the size a header declares is read before decoding") {
+  CHECK(declared_still_size(encoded(".png")) == kPictureSize);
+  CHECK(declared_still_size(encoded(".jpg")) == kPictureSize);
+  const std::vector<std::uint8_t> text = {'h', 'e', 'l', 'l', 'o', '\n'};
+  CHECK(declared_still_size(text).empty());
+
+  // A JPEG whose frame header follows an application segment holding
+  // another frame header (as an EXIF thumbnail's does): the segment is
+  // skipped whole, so the image's own size is the one read.
+  auto jpeg = encoded(".jpg");
+  const std::vector<std::uint8_t> app1 = {0xff, 0xe1, 0x00, 0x0b, 0xff, 0xc0, 0x00, 0x11, 0x08, 0x00, 0x10, 0x00, 0x20};
+  jpeg.insert(jpeg.begin() + 2, app1.begin(), app1.end());
+  CHECK(declared_still_size(jpeg) == kPictureSize);
+  std::string error;
+  CHECK(read_grey_still(written("app1.jpg", jpeg), kPictureSize, error).size() == kPictureSize);
+  CHECK(error.empty());
+}
+
+TEST_CASE("Still image: a small file declaring a huge image is refused without decoding it") {
+  std::string error;
+  // PNG: IHDR's width and height (bytes 16..23) set to 60000 x 60000, a
+  // 3.6 GB grey image; its CRC now fails, so decoding would say "corrupt",
+  // not the size.
+  auto png = encoded(".png");
+  for (const std::size_t at : {16u, 20u}) {
+    png[at] = 0;
+    png[at + 1] = 0;
+    png[at + 2] = 0xea;
+    png[at + 3] = 0x60;
+  }
+  CHECK(declared_still_size(png) == cv::Size(60000, 60000));
+  CHECK(read_grey_still(written("huge.png", png), kPictureSize, error).empty());
+  CHECK(error == "image is 60000x60000, the camera's 64x48");
+
+  // JPEG: the frame header's height and width (after its precision byte).
+  auto jpeg = encoded(".jpg");
+  std::size_t frame = 2;
+  while (!(jpeg[frame] == 0xff && jpeg[frame + 1] == 0xc0)) frame += 2 + (jpeg[frame + 2] << 8 | jpeg[frame + 3]);
+  jpeg[frame + 5] = 0xff;  // height 65535
+  jpeg[frame + 6] = 0xff;
+  CHECK(declared_still_size(jpeg) == cv::Size(64, 65535));
+  CHECK(read_grey_still(written("huge.jpg", jpeg), kPictureSize, error).empty());
+  CHECK(error == "image is 64x65535, the camera's 64x48");
+
+  // The right format at another size is refused the same way.
+  CHECK(read_grey_still(written("whole.png", encoded(".png")), {1280, 512}, error).empty());
+  CHECK(error == "image is 64x48, the camera's 1280x512");
+}
+
+TEST_CASE("Still image: a header without a size is not decoded") {
+  // IHDR's length changed: the first chunk is no longer a valid IHDR.
+  auto png = encoded(".png");
+  png[11] = 12;
+  CHECK(declared_still_size(png).empty());
+  // A JPEG whose first segment's length runs past the end of the file.
+  auto jpeg = encoded(".jpg");
+  jpeg[4] = 0xff;
+  jpeg[5] = 0xff;
+  CHECK(declared_still_size(jpeg).empty());
+  std::string error;
+  CHECK(read_grey_still(written("nosize.jpg", jpeg), kPictureSize, error).empty());
+  CHECK(error == "corrupt PNG or JPEG (no image size in its header)");
 }

@@ -234,6 +234,10 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   long video_frame = -1;
   cv::Mat video_grey(camera->height(), camera->width(), CV_8UC1);
   if (drive && !video.open(dir + "/frames.y4m")) fail(video.error());
+  if (drive && (video.format().width != camera->width() || video.format().height != camera->height()))
+    fail(dir + "/frames.y4m: frames are " + std::to_string(video.format().width) + "x" +
+         std::to_string(video.format().height) + ", the camera's " + std::to_string(camera->width()) +
+         "x" + std::to_string(camera->height()));
   const auto& region = config.region;
   cv::Mat mirrored_bev, mirrored_mask;  // the current image's bird's-eye view, left and right swapped
   int mirrored_for = -1;
@@ -250,13 +254,9 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       }
       grey = video_grey;
     } else {
-      grey = markloop::io::read_grey_still(path, error);
+      grey = markloop::io::read_grey_still(path, {camera->width(), camera->height()}, error);
       if (grey.empty()) fail(path + ": " + error);
     }
-    if (grey.cols != camera->width() || grey.rows != camera->height())
-      fail(path + ": image is " + std::to_string(grey.cols) + "x" + std::to_string(grey.rows) +
-           ", the camera " + std::to_string(camera->width()) + "x" +
-           std::to_string(camera->height()));
     detector.detect_still(grey);
     ++loaded;
     // In range: every corner on the road inside the detector's region (with
