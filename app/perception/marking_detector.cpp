@@ -227,9 +227,13 @@ std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
 std::span<const Detection> MarkingDetector::detect_frame(const cv::Mat& grey, bool still) {
   ++counters_.frames;
   if (!usable(grey)) return reject_frame();
+  const std::uint64_t over_caps = counters_.parts_dropped + counters_.candidates_dropped;
   process(grey, still);
+  // Paint beyond the caps is no road (a failing sensor, noise): its "lane
+  // lines" would drag the horizon the frames after it are seen with.
+  const bool road_like = counters_.parts_dropped + counters_.candidates_dropped == over_caps;
   if (config_.horizon_from_lanes && horizon_known_) {
-    if (const std::optional<float> measured = measure_horizon_shift()) {
+    if (const std::optional<float> measured = road_like ? measure_horizon_shift() : std::nullopt) {
       ++counters_.horizon_measured;
       horizon_estimate_ += config_.horizon_gain * (*measured - horizon_estimate_);
       // Moved by most of a row only: an estimate between two rows must not

@@ -28,7 +28,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: markloop-detector-bench [--camera FILE] [--y4m FILE] [--frames N] [--skip N]\n"
-    "                               [--horizon-from-lanes]\n"
+    "                               [--horizon-from-lanes] [--garbage]\n"
     "\n"
     "Times MarkingDetector::detect() per frame and prints median, p90, p99 and\n"
     "maximum. --y4m: frames from a file (mono or any YUV, luma used), else\n"
@@ -36,7 +36,10 @@ constexpr const char* kUsage =
     "simulator's camera, 1280x512). --frames: frames timed (default 1000).\n"
     "--skip: frames of the file skipped first (default 0).\n"
     "--horizon-from-lanes: the lane lines place the horizon on every frame\n"
-    "(as detector_horizon_from_lanes: 1 in a calibration file).\n";
+    "(as detector_horizon_from_lanes: 1 in a calibration file).\n"
+    "--garbage: instead of a road, frames of noise and checkerboards of 1 to 4\n"
+    "pixels (a failing sensor, a camera gone wrong): paint is found everywhere\n"
+    "and the candidates classified reach their cap, so this is the worst case.\n";
 
 double thread_cpu_ms() {
   timespec ts{};
@@ -57,7 +60,7 @@ int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-detector-bench";
   std::string camera_path, y4m_path;
   unsigned frames = 1000, skip = 0;
-  bool horizon_from_lanes = false;
+  bool horizon_from_lanes = false, garbage = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -66,6 +69,10 @@ int main(int argc, char** argv) {
     }
     if (arg == "--horizon-from-lanes") {
       horizon_from_lanes = true;
+      continue;
+    }
+    if (arg == "--garbage") {
+      garbage = true;
       continue;
     }
     const char* value = markloop::cli::option_value(argc, argv, i, {"--camera", "--y4m", "--frames", "--skip"});
@@ -79,6 +86,7 @@ int main(int argc, char** argv) {
       skip = markloop::cli::parse_whole(arg, value);
   }
   if (frames == 0) markloop::cli::fail("--frames must be at least 1");
+  if (garbage && !y4m_path.empty()) markloop::cli::fail("--garbage and --y4m: give one of them");
   std::string error;
   CameraModel camera = default_camera_model();
   DetectorConfig config;
@@ -99,6 +107,8 @@ int main(int argc, char** argv) {
       markloop::cli::fail(y4m_path + ": frames are " + std::to_string(reader.format().width) + "x" +
                           std::to_string(reader.format().height) + ", the camera " +
                           std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
+  } else if (garbage) {
+    for (int k = 0; k < 20; ++k) synthetic.push_back(markloop::perception::testing::garbage_frame(camera, k));
   } else {
     using markloop::perception::testing::GroundRect;
     for (int k = 0; k < 20; ++k) {
@@ -136,7 +146,7 @@ int main(int argc, char** argv) {
   }
   if (ms.empty()) markloop::cli::fail("no frames timed");
   std::printf("detect() on %dx%d frames (%s), bird's-eye %dx%d, %zu frames\n", camera.width(),
-              camera.height(), y4m_path.empty() ? "synthetic" : y4m_path.c_str(),
+              camera.height(), !y4m_path.empty() ? y4m_path.c_str() : garbage ? "garbage" : "synthetic",
               detector.birdseye().cols(), detector.birdseye().rows(), ms.size());
   std::string core_list;
   for (std::size_t core = 0; core < cores.size(); ++core)
@@ -152,6 +162,11 @@ int main(int argc, char** argv) {
               per_frame_detections);
   std::printf("| thread CPU | %.3f ms | %.3f ms | %.3f ms | %.3f ms | | |\n", percentile(cpu_ms, 0.5),
               percentile(cpu_ms, 0.9), percentile(cpu_ms, 0.99), percentile(cpu_ms, 1.0));
+  if (const DetectorCounters& c = detector.counters(); c.parts_dropped + c.candidates_dropped > 0)
+    std::printf("over the caps (a frame's %zu parts, %zu candidates), not examined: %llu parts, %llu "
+                "candidates\n",
+                kMaxParts, kMaxCandidates, static_cast<unsigned long long>(c.parts_dropped),
+                static_cast<unsigned long long>(c.candidates_dropped));
   if (config.horizon_from_lanes) {
     const DetectorCounters& c = detector.counters();
     std::printf("horizon from the lane lines: measured in %llu frames, not in %llu; view moved %llu "

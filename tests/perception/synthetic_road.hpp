@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <vector>
 
-#include <opencv2/core/mat.hpp>
+#include <opencv2/core.hpp>
 
 #include "perception/camera_model.hpp"
 
@@ -84,6 +84,25 @@ inline cv::Mat render_road_lines(const CameraModel& camera, const std::vector<Gr
     return std::any_of(lines.begin(), lines.end(), [&](const GroundLine& l) { return l.covers(g); }) ||
            std::any_of(blocks.begin(), blocks.end(), [&](const GroundRect& r) { return r.covers(g); });
   });
+}
+
+// Not a road: frame k of a camera gone wrong (a failing sensor, a lens
+// covered): uniform noise in the even frames, checkerboards of 1 to 4
+// pixels in the odd ones. The paint threshold finds paint everywhere, so
+// the detector's parts and candidates reach their caps: its worst case.
+inline cv::Mat garbage_frame(const CameraModel& camera, int k) {
+  cv::Mat image(camera.height(), camera.width(), CV_8UC1);
+  if (k % 2 == 0) {
+    cv::RNG rng(static_cast<std::uint64_t>(9001 + k));  // the same frames every run
+    rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+    return image;
+  }
+  const int cell = 1 + (k / 2) % 4;
+  for (int r = 0; r < image.rows; ++r) {
+    auto* row = image.ptr<std::uint8_t>(r);
+    for (int c = 0; c < image.cols; ++c) row[c] = ((r / cell + c / cell) % 2) != 0 ? 230 : 40;
+  }
+  return image;
 }
 
 }  // namespace markloop::perception::testing

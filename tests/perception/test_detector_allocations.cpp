@@ -15,6 +15,7 @@
 #include "support/count_allocations.hpp"
 
 using namespace markloop::perception;
+using markloop::perception::testing::garbage_frame;
 using markloop::perception::testing::GroundRect;
 using markloop::perception::testing::render_road;
 using markloop::test::AllocationCounter;
@@ -62,6 +63,21 @@ TEST_CASE("detect() allocates nothing, frame after frame", "[perception][memory]
   CHECK(candidates > 0);
   CHECK(detector.counters().frames == 121);
   (void)detections;
+}
+
+TEST_CASE("detect() allocates nothing at its caps either (frames of noise and checkerboards)",
+          "[perception][memory]") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 8; ++k) frames.push_back(garbage_frame(camera, k));
+  detector.detect(frames[0]);
+  AllocationCounter heap;
+  for (int round = 0; round < 2; ++round)
+    for (const cv::Mat& frame : frames) detector.detect(frame);
+  const std::size_t allocations = heap.stop();
+  CHECK(allocations == 0);
+  CHECK(detector.counters().candidates_dropped > 0);
 }
 
 TEST_CASE("the horizon from the lane lines allocates nothing, when it moves the view either",

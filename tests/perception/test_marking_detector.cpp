@@ -17,6 +17,7 @@
 #include "synthetic_road.hpp"
 
 using namespace markloop::perception;
+using markloop::perception::testing::garbage_frame;
 using markloop::perception::testing::GroundLine;
 using markloop::perception::testing::GroundRect;
 using markloop::perception::testing::render_road;
@@ -567,6 +568,37 @@ TEST_CASE("detector: an empty road gives nothing; wrong frames are counted, not 
   CHECK(detector.detect(colour).empty());
   CHECK(detector.counters().bad_frames == 2);
   CHECK(detector.counters().frames == 3);
+}
+
+TEST_CASE("detector: frames of noise and checkerboards give no markings; candidates over the cap are counted") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  std::size_t detections = 0;
+  for (int k = 0; k < 20; ++k) {
+    detections += detector.detect(garbage_frame(camera, k)).size();
+    CHECK(detector.candidates().size() <= kMaxCandidates);
+  }
+  CHECK(detections == 0);
+  const DetectorCounters& counters = detector.counters();
+  CHECK(counters.frames == 20);
+  CHECK(counters.bad_frames == 0);     // the right size and type: processed...
+  CHECK(counters.candidates_dropped > 0);  // ...up to the cap, the rest counted
+  CHECK(counters.detections == 0);
+}
+
+TEST_CASE("detector: frames whose paint overflows the caps do not move the horizon") {
+  const CameraModel camera = default_camera_model();
+  DetectorConfig config;
+  config.horizon_from_lanes = true;
+  MarkingDetector detector(camera, config);
+  for (int k = 1; k < 20; k += 2) detector.detect(garbage_frame(camera, k));  // the checkerboards
+  const DetectorCounters& counters = detector.counters();
+  CHECK(counters.frames == 10);
+  CHECK(counters.candidates_dropped > 0);
+  CHECK(counters.horizon_measured == 0);
+  CHECK(counters.horizon_unmeasured == 10);
+  CHECK(counters.horizon_moves == 0);
+  CHECK(detector.horizon_shift() == 0);
 }
 
 TEST_CASE("horizon: lane lines meeting at a point give its row; strays and parallels do not") {
