@@ -167,7 +167,9 @@ cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::stri
   }
   cv::Mat grey;
   try {
-    grey = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+    // The pixels as the camera stored them: an EXIF orientation would turn
+    // the image away from the calibration (and from the header's size).
+    grey = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
   } catch (const cv::Exception&) {
     grey.release();
   }
