@@ -39,7 +39,7 @@ constexpr const char* kUsage =
     "(as detector_horizon_from_lanes: 1 in a calibration file).\n"
     "--garbage: instead of a road, frames of noise and checkerboards of 1 to 4\n"
     "pixels (a failing sensor, a camera gone wrong): paint is found everywhere\n"
-    "and the candidates classified reach their cap, so this is the worst case.\n";
+    "and the candidates classified come to or reach their cap: the worst case.\n";
 
 double thread_cpu_ms() {
   timespec ts{};

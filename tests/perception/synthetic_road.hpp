@@ -88,8 +88,10 @@ inline cv::Mat render_road_lines(const CameraModel& camera, const std::vector<Gr
 
 // Not a road: frame k of a camera gone wrong (a failing sensor, a lens
 // covered): uniform noise in the even frames, checkerboards of 1 to 4
-// pixels in the odd ones. The paint threshold finds paint everywhere, so
-// the detector's parts and candidates reach their caps: its worst case.
+// pixels in the odd ones. The paint threshold finds paint everywhere: the
+// detector classifies about as many candidates as its cap allows, and some
+// frames (the simulator's camera: the 2- and 3-pixel checkerboards) overflow
+// it: its worst case.
 inline cv::Mat garbage_frame(const CameraModel& camera, int k) {
   cv::Mat image(camera.height(), camera.width(), CV_8UC1);
   if (k % 2 == 0) {
