@@ -157,6 +157,8 @@ const std::vector<Key>& keys() {
                   [](EcuConfig& c) -> unsigned& { return c.camera.max_rate; }),
       integer_key("camera.timeout_ms", 10, 60000,
                   [](EcuConfig& c) -> unsigned& { return c.camera.timeout_ms; }),
+      integer_key("camera.blind_frames", 1, 100000,
+                  [](EcuConfig& c) -> unsigned& { return c.camera.blind_frames; }),
       text_key("calibration", &EcuConfig::calibration),
       text_key("can.interface", &EcuConfig::can, &CanSettings::interface),
       text_key("can.in_log", &EcuConfig::can, &CanSettings::in_log),

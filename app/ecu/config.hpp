@@ -24,6 +24,7 @@ struct CameraSettings {
   unsigned fps = 10;                   // 0: the driver's rate (HDMI-like inputs); deadlines as 10
   unsigned timeout_ms = 500;           // no frame this long: camera lost
   unsigned max_rate = 0;               // process at most this many frames per second (0: all)
+  unsigned blind_frames = 10;          // this many frames in a row showing no road: camera blind
 };
 
 struct CanSettings {

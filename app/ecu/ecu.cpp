@@ -114,8 +114,24 @@ std::span<const perception::Detection> Ecu::on_frame(const cv::Mat& grey, Nanose
   const auto started = SteadyClock::now();
   const std::span<const perception::Detection> detections = detector_.detect(grey);
   detect_time_.add(SteadyClock::now() - started);
+  judge_camera(detector_.last_view());
   process(detections, frame_time, arrival, started);
   return detections;
+}
+
+void Ecu::judge_camera(perception::ViewKind view) noexcept {
+  // A lens covered for a moment or one garbled frame is not a fault; a run of
+  // them is, and as long a run of road ends it.
+  const bool shows_road = view == perception::ViewKind::Road;
+  if (!shows_road) ++counters_.frames_blind;
+  if (shows_road == camera_blind_) {
+    if (++views_in_a_row_ >= config_.camera.blind_frames) {
+      camera_blind_ = !camera_blind_;
+      views_in_a_row_ = 0;
+    }
+  } else {
+    views_in_a_row_ = 0;
+  }
 }
 
 void Ecu::process(std::span<const perception::Detection> detections, Nanoseconds frame_time,
@@ -209,6 +225,7 @@ void Ecu::on_match(const MatchEvent& event) {
 EcuFaults Ecu::faults(Nanoseconds now) noexcept {
   EcuFaults f;
   f.camera_lost = camera_lost_;
+  f.camera_blind = camera_blind_ && !camera_lost_;
   f.odometry_timeout = !odometry_.pose_known(now);
   f.bus_error = bus_fault_ || bus_errors_in_cycle_ > 0 || odometry_.take_rejections() > 0;
   f.overrun = overruns_in_cycle_ > 0 || dropped_in_cycle_ > 0;
@@ -222,13 +239,15 @@ void Ecu::send_status(Nanoseconds now) noexcept {
   dbc::Status status;
   if (counters_.frames_processed == 0 && !f.camera_lost)
     status.system_state = dbc::SystemState::Initialising;
-  else if (f.camera_lost)
-    status.system_state = dbc::SystemState::Fault;  // no frames: no place recognition at all
+  else if (f.camera_lost || f.camera_blind)
+    status.system_state = dbc::SystemState::Fault;  // no road seen: no place recognition at all
   else if (f.odometry_timeout || f.bus_error || f.overrun)
     status.system_state = dbc::SystemState::Degraded;
   else
     status.system_state = dbc::SystemState::Running;
   status.fault_camera_lost = f.camera_lost;
+  status.fault_camera_blind = f.camera_blind;
+  status.frames_blind = saturate32(counters_.frames_blind);
   status.fault_odometry_timeout = f.odometry_timeout;
   status.fault_bus_error = f.bus_error;
   status.fault_overrun = f.overrun;

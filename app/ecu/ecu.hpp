@@ -38,6 +38,7 @@ struct EcuCounters {
   std::uint64_t frames_dropped = 0;        // skipped (overrun) or lost by the camera
   std::uint64_t frames_over_rate = 0;      // skipped on purpose: above camera.max_rate
   std::uint64_t frames_without_pose = 0;   // processed for detection only
+  std::uint64_t frames_blind = 0;          // processed, but showed no road (perception::ViewKind)
   std::uint64_t overruns = 0;              // processing took longer than a frame period
   std::uint64_t detections = 0;
   std::uint64_t detections_rejected = 0;   // unknown label or non-finite position
@@ -58,6 +59,7 @@ struct EcuCounters {
 
 struct EcuFaults {
   bool camera_lost = false;
+  bool camera_blind = false;
   bool odometry_timeout = false;
   bool bus_error = false;
   bool overrun = false;
@@ -134,6 +136,7 @@ class Ecu final : private MatchSink {
   void send(const can::CanFrame& frame, Nanoseconds stamp) noexcept;
   void handle_command(const can::CanFrame& frame) noexcept;
   void clear_database() noexcept;
+  void judge_camera(perception::ViewKind view) noexcept;
   Nanoseconds frame_period() const noexcept { return frame_period_; }
 
   EcuConfig config_;
@@ -154,6 +157,8 @@ class Ecu final : private MatchSink {
   FrameIndex next_frame_ = 0;
   bool pose_was_known_ = false;
   bool camera_lost_ = false;
+  bool camera_blind_ = false;
+  unsigned views_in_a_row_ = 0;  // frames in a row that would change camera_blind_
   bool bus_fault_ = false;
   Nanoseconds stamp_offset_{0};
   // Context of the frame being processed, for on_match().

@@ -89,9 +89,11 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
   (void)platform::resident_bytes(rss);
   if (!options.quiet) {
     std::fprintf(stderr,
-                 "markloop: %s mode, %.1f s: %llu frames processed, %llu dropped, %llu above the rate, "
-                 "%llu overruns, %llu detections, %llu loop detections sent\n",
+                 "markloop: %s mode, %.1f s: %llu frames processed (%llu showing no road), %llu "
+                 "dropped, %llu above the rate, %llu overruns, %llu detections, %llu loop detections "
+                 "sent\n",
                  mode, wall_seconds, (unsigned long long)c.frames_processed,
+                 (unsigned long long)c.frames_blind,
                  (unsigned long long)c.frames_dropped, (unsigned long long)c.frames_over_rate,
                  (unsigned long long)c.overruns,
                  (unsigned long long)c.detections, (unsigned long long)c.loop_detections);
@@ -112,14 +114,15 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
     std::fprintf(stderr,
                  "markloop: detector %llu parts, %llu lane lines, %llu candidates, %llu rejected, "
                  "%llu below score, %llu pieces of larger ones, %llu cut by the view's edge, "
-                 "%llu beyond the region, %llu bad frames, %llu parts and %llu candidates over "
-                 "the caps; horizon measured in %llu frames (not in %llu), moved %llu times, now "
+                 "%llu beyond the region, %llu bad frames, %llu flat and %llu cluttered views, "
+                 "%llu parts and %llu candidates over the caps; horizon measured in %llu frames (not in %llu), moved %llu times, now "
                  "%d rows\n",
                  (unsigned long long)d.parts, (unsigned long long)d.lane_lines,
                  (unsigned long long)d.candidates, (unsigned long long)d.rejected,
                  (unsigned long long)d.low_score, (unsigned long long)d.pieces,
                  (unsigned long long)d.clipped, (unsigned long long)d.beyond_region,
-                 (unsigned long long)d.bad_frames, (unsigned long long)d.parts_dropped,
+                 (unsigned long long)d.bad_frames, (unsigned long long)d.flat_frames,
+                 (unsigned long long)d.cluttered_frames, (unsigned long long)d.parts_dropped,
                  (unsigned long long)d.candidates_dropped, (unsigned long long)d.horizon_measured,
                  (unsigned long long)d.horizon_unmeasured, (unsigned long long)d.horizon_moves,
                  ecu.detector().horizon_shift());
@@ -148,7 +151,8 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
   std::fprintf(out,
                "{\"mode\": \"%s\", \"wall_s\": %.3f, \"frames_processed\": %llu, \"frames_dropped\": %llu,"
                " \"overruns\": %llu, \"detections\": %llu, \"loop_detections\": %llu,"
-               " \"frames_without_pose\": %llu, \"pose_losses\": %llu, \"foreign_frames\": %llu,"
+               " \"frames_without_pose\": %llu, \"frames_blind\": %llu, \"pose_losses\": %llu,"
+               " \"foreign_frames\": %llu,"
                " \"send_errors\": %llu, \"odometry_accepted\": %llu, \"odometry_bad_crc\": %llu,"
                " \"odometry_bad_counter\": %llu, \"odometry_timeouts\": %llu,"
                " \"detect_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
@@ -159,7 +163,8 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                mode, wall_seconds, (unsigned long long)c.frames_processed,
                (unsigned long long)c.frames_dropped, (unsigned long long)c.overruns,
                (unsigned long long)c.detections, (unsigned long long)c.loop_detections,
-               (unsigned long long)c.frames_without_pose, (unsigned long long)c.pose_losses,
+               (unsigned long long)c.frames_without_pose, (unsigned long long)c.frames_blind,
+               (unsigned long long)c.pose_losses,
                (unsigned long long)c.foreign_frames, (unsigned long long)c.send_errors,
                (unsigned long long)odo.accepted, (unsigned long long)odo.bad_crc,
                (unsigned long long)odo.bad_counter, (unsigned long long)odo.timeouts,

@@ -70,6 +70,9 @@ bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& erro
       s.loop_time_max_ms = status_page.loop_time_max_ms;
     ++s.frames_in_state[static_cast<std::size_t>(status_page.system_state)];
     s.camera_lost += status_page.fault_camera_lost ? 1 : 0;
+    // Page 3's own flag: a frame of another page does not carry it.
+    if (status_page.status_page == dbc::StatusPage::Perception)
+      s.camera_blind += status_page.fault_camera_blind ? 1 : 0;
     s.odometry_timeout += status_page.fault_odometry_timeout ? 1 : 0;
     s.bus_error += status_page.fault_bus_error ? 1 : 0;
     s.overrun += status_page.fault_overrun ? 1 : 0;

@@ -39,7 +39,7 @@ struct StatusSummary {
   double loop_time_max_ms = 0.0;  // largest LoopTimeMax of any Status frame
   std::array<std::uint64_t, 4> frames_in_state{};  // by SystemState
   // Status frames with each fault flag set.
-  std::uint64_t camera_lost = 0, odometry_timeout = 0, bus_error = 0, overrun = 0;
+  std::uint64_t camera_lost = 0, camera_blind = 0, odometry_timeout = 0, bus_error = 0, overrun = 0;
 };
 
 struct EcuCanLog {

@@ -177,12 +177,13 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
   std::fprintf(f,
                "\"status\":{\"frames_processed\":%u,\"frames_dropped\":%u,\"loop_time_max_ms\":%.2f,"
                "\"database_fill_percent\":%.1f,\"landmarks\":%u,\"sequences\":%u,\"last_state\":\"%s\","
-               "\"fault_frames\":{\"camera_lost\":%llu,\"odometry_timeout\":%llu,\"bus_error\":%llu,"
-               "\"overrun\":%llu}},",
+               "\"frames_blind\":%u,\"fault_frames\":{\"camera_lost\":%llu,\"camera_blind\":%llu,"
+               "\"odometry_timeout\":%llu,\"bus_error\":%llu,\"overrun\":%llu}},",
                s.last.frames_processed, s.last.frames_dropped, s.loop_time_max_ms,
                s.last.database_fill_percent, s.last.landmark_count, s.last.sequence_count,
-               std::string(dbc::to_string(s.last.system_state)).c_str(),
-               (unsigned long long)s.camera_lost, (unsigned long long)s.odometry_timeout,
+               std::string(dbc::to_string(s.last.system_state)).c_str(), s.last.frames_blind,
+               (unsigned long long)s.camera_lost, (unsigned long long)s.camera_blind,
+               (unsigned long long)s.odometry_timeout,
                (unsigned long long)s.bus_error, (unsigned long long)s.overrun);
   std::fprintf(f,
                "\"loops\":{\"detections\":%zu,\"correct\":%zu,\"wrong\":%zu,\"unjudged\":%zu,"
@@ -323,8 +324,12 @@ int main(int argc, char** argv) {
     if (s.page_seen[2])
       std::printf("  %-34s %u landmarks, %u sequences\n", "database", s.last.landmark_count,
                   s.last.sequence_count);
-    std::printf("  %-34s camera lost %llu, odometry timeout %llu, bus error %llu, overrun %llu\n",
+    if (s.page_seen[3])
+      std::printf("  %-34s %u\n", "frames showing no road", s.last.frames_blind);
+    std::printf("  %-34s camera lost %llu, camera blind %llu, odometry timeout %llu, bus error %llu, "
+                "overrun %llu\n",
                 "Status frames with a fault", (unsigned long long)s.camera_lost,
+                (unsigned long long)s.camera_blind,
                 (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error,
                 (unsigned long long)s.overrun);
   }

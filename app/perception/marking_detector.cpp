@@ -227,11 +227,11 @@ std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
 std::span<const Detection> MarkingDetector::detect_frame(const cv::Mat& grey, bool still) {
   ++counters_.frames;
   if (!usable(grey)) return reject_frame();
-  const std::uint64_t over_caps = counters_.parts_dropped + counters_.candidates_dropped;
+  const DetectorCounters before = counters_;
   process(grey, still);
-  // Paint beyond the caps is no road (a failing sensor, noise): its "lane
-  // lines" would drag the horizon the frames after it are seen with.
-  const bool road_like = counters_.parts_dropped + counters_.candidates_dropped == over_caps;
+  // A view that is no road (a failing sensor, noise) has "lane lines" that
+  // would drag the horizon the frames after it are seen with.
+  const bool road_like = judge_view(before) == ViewKind::Road;
   if (config_.horizon_from_lanes && horizon_known_) {
     if (const std::optional<float> measured = road_like ? measure_horizon_shift() : std::nullopt) {
       ++counters_.horizon_measured;
@@ -267,11 +267,87 @@ std::span<const Detection> MarkingDetector::detect_still(const cv::Mat& grey) {
     measured = measure_horizon_shift();
   }
   ++(placed ? counters_.horizon_measured : counters_.horizon_unmeasured);
+  (void)judge_view(before);
   return {detections_.data(), detection_count_};
+}
+
+ViewKind MarkingDetector::kind_of(ViewSpread spread) const {
+  if (spread.pixels < config_.min_view_spread) return ViewKind::Flat;
+  // Noise as strong as paint's contrast, and no more than noise.
+  if (spread.pixels >= static_cast<float>(config_.min_contrast) &&
+      spread.blocks < config_.min_view_coherence * spread.pixels)
+    return ViewKind::Noisy;
+  return ViewKind::Road;
+}
+
+ViewKind MarkingDetector::judge_view(const DetectorCounters& before) {
+  last_view_ = kind_of(last_view_spread_);
+  if (last_view_ == ViewKind::Road && counters_.parts_dropped + counters_.candidates_dropped >
+                                          before.parts_dropped + before.candidates_dropped)
+    last_view_ = ViewKind::Cluttered;
+  switch (last_view_) {
+    case ViewKind::Flat: ++counters_.flat_frames; break;
+    case ViewKind::Noisy: ++counters_.noisy_frames; break;
+    case ViewKind::Cluttered:
+      // Examined in part only, up to the caps: what it found is no more
+      // trustworthy than what it left out.
+      ++counters_.cluttered_frames;
+      counters_.detections -= detection_count_;
+      counters_.detections_withheld += detection_count_;
+      detection_count_ = 0;
+      break;
+    case ViewKind::Road:
+    case ViewKind::Unusable: break;
+  }
+  return last_view_;
+}
+
+ViewSpread MarkingDetector::view_spread() const {
+  // Over pixels and over blocks of the view: a sensor's noise, however
+  // strong, averages out within a block; a road's lines, verges and light
+  // do not. Every other row and column of each block is read.
+  constexpr int kBlock = 16, kStep = 2;
+  constexpr unsigned kMinSeen = (kBlock / kStep) * (kBlock / kStep) / 2;
+  const cv::Mat& valid = birdseye_.valid();
+  double blocks = 0.0, block_sum = 0.0, block_sum_sq = 0.0;
+  std::uint64_t pixels = 0, pixel_sum = 0, pixel_sum_sq = 0;
+  for (int r0 = 0; r0 + kBlock <= bev_.rows; r0 += kBlock) {
+    for (int c0 = 0; c0 + kBlock <= bev_.cols; c0 += kBlock) {
+      unsigned seen = 0, total = 0, total_sq = 0;
+      for (int r = r0; r < r0 + kBlock; r += kStep) {
+        const std::uint8_t* grey = bev_.ptr<std::uint8_t>(r);
+        const std::uint8_t* in_view = valid.ptr<std::uint8_t>(r);
+        for (int c = c0; c < c0 + kBlock; c += kStep) {
+          if (in_view[c] == 0) continue;
+          ++seen;
+          total += grey[c];
+          total_sq += unsigned{grey[c]} * grey[c];
+        }
+      }
+      if (seen < kMinSeen) continue;  // mostly outside the image or under the bonnet
+      pixels += seen;
+      pixel_sum += total;
+      pixel_sum_sq += total_sq;
+      const double mean = static_cast<double>(total) / static_cast<double>(seen);
+      blocks += 1.0;
+      block_sum += mean;
+      block_sum_sq += mean * mean;
+    }
+  }
+  if (blocks < 2.0) return {};
+  const auto deviation = [](double sum, double sum_sq, double n) {
+    const double mean = sum / n;
+    return static_cast<float>(std::sqrt(std::max(0.0, sum_sq / n - mean * mean)));
+  };
+  return {deviation(static_cast<double>(pixel_sum), static_cast<double>(pixel_sum_sq),
+                    static_cast<double>(pixels)),
+          deviation(block_sum, block_sum_sq, blocks)};
 }
 
 std::span<const Detection> MarkingDetector::reject_frame() {
   ++counters_.bad_frames;
+  last_view_ = ViewKind::Unusable;
+  last_view_spread_ = {};
   detection_count_ = 0;
   candidate_count_ = 0;
   lane_segment_count_ = 0;
@@ -402,6 +478,14 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
   detection_count_ = 0;
   candidate_count_ = 0;
   birdseye_.warp(grey, bev_);
+  last_view_spread_ = view_spread();
+  if (kind_of(last_view_spread_) != ViewKind::Road) {
+    // No road to look for paint on: whatever "paint" noise or a flat grey
+    // showed would be no marking, and costs the most time of all frames.
+    for (int r = 0; r < mask_.rows; ++r) std::fill_n(mask_.ptr<std::uint8_t>(r), mask_.cols, std::uint8_t{0});
+    lane_segment_count_ = 0;
+    return;
+  }
   threshold();
   cut_line_junctions();
   const std::size_t part_count = label_parts();
@@ -940,6 +1024,8 @@ bool load_detector_config(const std::string& path, DetectorConfig& config, std::
         {"detector_horizon_gain", &c.horizon_gain, 0.001f, 1.0f},
         {"detector_cnn_share", &c.cnn_share, 0.0f, 1.0f},
         {"detector_skip_networks_at", &c.skip_networks_at, 0.0f, 2.0f},
+        {"detector_min_view_spread", &c.min_view_spread, 0.0f, 64.0f},
+        {"detector_min_view_coherence", &c.min_view_coherence, 0.0f, 1.0f},
     };
     for (const Key& key : keys) {
       const cv::FileNode node = fs[key.name];

@@ -11,11 +11,13 @@
 #include <sched.h>
 
 #include <algorithm>
+#include <array>
 #include <bitset>
 #include <chrono>
 #include <ctime>
 #include <cstdio>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "cli/cli.hpp"
@@ -28,7 +30,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: markloop-detector-bench [--camera FILE] [--y4m FILE] [--frames N] [--skip N]\n"
-    "                               [--horizon-from-lanes] [--garbage]\n"
+    "                               [--horizon-from-lanes] [--garbage | --clutter]\n"
     "\n"
     "Times MarkingDetector::detect() per frame and prints median, p90, p99 and\n"
     "maximum. --y4m: frames from a file (mono or any YUV, luma used), else\n"
@@ -38,8 +40,11 @@ constexpr const char* kUsage =
     "--horizon-from-lanes: the lane lines place the horizon on every frame\n"
     "(as detector_horizon_from_lanes: 1 in a calibration file).\n"
     "--garbage: instead of a road, frames of noise and checkerboards of 1 to 4\n"
-    "pixels (a failing sensor, a camera gone wrong): paint is found everywhere\n"
-    "and the candidates classified come to or reach their cap: the worst case.\n";
+    "pixels (a failing sensor, a camera gone wrong): taken for noise, not searched.\n"
+    "--clutter: a road with paint everywhere in pieces a marking's size (tiles):\n"
+    "more candidates than the detector classifies, the rest counted: the worst case.\n"
+    "Also printed: how many frames the detector took for road, flat, noisy or\n"
+    "cluttered views (ViewKind), and the spread of their grey (ViewSpread).\n";
 
 double thread_cpu_ms() {
   timespec ts{};
@@ -60,7 +65,8 @@ int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-detector-bench";
   std::string camera_path, y4m_path;
   unsigned frames = 1000, skip = 0;
-  bool horizon_from_lanes = false, garbage = false;
+  bool horizon_from_lanes = false;
+  const char* frame_source = nullptr;  // --garbage or --clutter
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -71,8 +77,9 @@ int main(int argc, char** argv) {
       horizon_from_lanes = true;
       continue;
     }
-    if (arg == "--garbage") {
-      garbage = true;
+    if (arg == "--garbage" || arg == "--clutter") {
+      if (frame_source != nullptr) markloop::cli::fail("--garbage and --clutter: give one of them");
+      frame_source = argv[i] + 2;
       continue;
     }
     const char* value = markloop::cli::option_value(argc, argv, i, {"--camera", "--y4m", "--frames", "--skip"});
@@ -86,7 +93,8 @@ int main(int argc, char** argv) {
       skip = markloop::cli::parse_whole(arg, value);
   }
   if (frames == 0) markloop::cli::fail("--frames must be at least 1");
-  if (garbage && !y4m_path.empty()) markloop::cli::fail("--garbage and --y4m: give one of them");
+  if (frame_source != nullptr && !y4m_path.empty())
+    markloop::cli::fail(std::string("--") + frame_source + " and --y4m: give one of them");
   std::string error;
   CameraModel camera = default_camera_model();
   DetectorConfig config;
@@ -107,8 +115,11 @@ int main(int argc, char** argv) {
       markloop::cli::fail(y4m_path + ": frames are " + std::to_string(reader.format().width) + "x" +
                           std::to_string(reader.format().height) + ", the camera " +
                           std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
-  } else if (garbage) {
-    for (int k = 0; k < 20; ++k) synthetic.push_back(markloop::perception::testing::garbage_frame(camera, k));
+  } else if (frame_source != nullptr) {
+    const bool garbage = std::string_view(frame_source) == "garbage";
+    for (int k = 0; k < 20; ++k)
+      synthetic.push_back(garbage ? markloop::perception::testing::garbage_frame(camera, k)
+                                  : markloop::perception::testing::clutter_frame(camera, k));
   } else {
     using markloop::perception::testing::GroundRect;
     for (int k = 0; k < 20; ++k) {
@@ -123,6 +134,12 @@ int main(int argc, char** argv) {
   ms.reserve(frames);
   cpu_ms.reserve(frames);
   std::size_t detections = 0, candidates = 0;
+  // Each timed frame's view: how much its pixels' grey varies, and its
+  // blocks' against that (ViewSpread).
+  std::vector<double> pixel_spreads, coherences;
+  pixel_spreads.reserve(frames);
+  coherences.reserve(frames);
+  std::array<std::size_t, 5> views{};  // frames by ViewKind
   std::bitset<1024> cores;  // the CPUs the timed frames started on
   for (unsigned i = 0; i < skip + frames; ++i) {
     const cv::Mat* input = &frame;
@@ -142,11 +159,17 @@ int main(int argc, char** argv) {
     const auto t1 = std::chrono::steady_clock::now();
     cpu_ms.push_back(thread_cpu_ms() - c0);
     candidates += detector.candidates().size();
+    const ViewSpread spread = detector.last_view_spread();
+    pixel_spreads.push_back(spread.pixels);
+    coherences.push_back(spread.pixels > 0.0f ? spread.blocks / spread.pixels : 0.0);
+    ++views[static_cast<std::size_t>(detector.last_view())];
     ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
   }
   if (ms.empty()) markloop::cli::fail("no frames timed");
   std::printf("detect() on %dx%d frames (%s), bird's-eye %dx%d, %zu frames\n", camera.width(),
-              camera.height(), !y4m_path.empty() ? y4m_path.c_str() : garbage ? "garbage" : "synthetic",
+              camera.height(), !y4m_path.empty()          ? y4m_path.c_str()
+              : frame_source != nullptr ? frame_source
+                                        : "synthetic",
               detector.birdseye().cols(), detector.birdseye().rows(), ms.size());
   std::string core_list;
   for (std::size_t core = 0; core < cores.size(); ++core)
@@ -167,6 +190,15 @@ int main(int argc, char** argv) {
                 "candidates\n",
                 kMaxParts, kMaxCandidates, static_cast<unsigned long long>(c.parts_dropped),
                 static_cast<unsigned long long>(c.candidates_dropped));
+  const auto frames_of = [&](ViewKind kind) { return views[static_cast<std::size_t>(kind)]; };
+  std::printf("views: %zu road, %zu flat, %zu noisy, %zu cluttered; pixels' grey spread min %.1f, "
+              "median %.1f, max %.1f (flat below %.1f); blocks' against it min %.2f, median %.2f, "
+              "max %.2f (noisy below %.2f)\n",
+              frames_of(ViewKind::Road), frames_of(ViewKind::Flat), frames_of(ViewKind::Noisy),
+              frames_of(ViewKind::Cluttered), percentile(pixel_spreads, 0.0),
+              percentile(pixel_spreads, 0.5), percentile(pixel_spreads, 1.0), config.min_view_spread,
+              percentile(coherences, 0.0), percentile(coherences, 0.5), percentile(coherences, 1.0),
+              config.min_view_coherence);
   if (config.horizon_from_lanes) {
     const DetectorCounters& c = detector.counters();
     std::printf("horizon from the lane lines: measured in %llu frames, not in %llu; view moved %llu "

@@ -108,6 +108,8 @@ int main() {
   status.loop_time_max_ms = 8.76;
   status.landmark_count = 262144;
   status.sequence_count = 1000001;
+  status.fault_camera_blind = true;
+  status.frames_blind = 3000000000U;
   counter = 0;
   for (const StatusPage page : Status::kPages) {
     status.status_page = page;
@@ -128,6 +130,11 @@ int main() {
         print(status, c, {{"StatusAliveCounter", c}, {"StatusPage", p}, {"SystemState", raw(SystemState::Running)},
                           {"FaultCameraLost", 1}, {"FaultOdometryTimeout", 0}, {"FaultBusError", 0},
                           {"FaultOverrun", 1}, {"LandmarkCount", 262144}, {"SequenceCount", 1000001}});
+        break;
+      case StatusPage::Perception:
+        print(status, c, {{"StatusAliveCounter", c}, {"StatusPage", p}, {"SystemState", raw(SystemState::Running)},
+                          {"FaultCameraLost", 1}, {"FaultOdometryTimeout", 0}, {"FaultBusError", 0},
+                          {"FaultOverrun", 1}, {"FaultCameraBlind", 1}, {"FramesBlind", 3000000000.0}});
         break;
     }
   }

@@ -55,7 +55,7 @@ static_assert(VehicleOdometry::kTimeout == std::chrono::milliseconds{60});
 static_assert(Command::kId == 0x1A0 && Command::kLength == 4 && !Command::kIsCyclic);
 static_assert(LoopDetection::kId == 0x2A0 && LoopDetection::kPages.size() == 6);
 static_assert(Status::kId == 0x2B0 && Status::kCycleTime == std::chrono::milliseconds{100});
-static_assert(Status::kPages.size() == 3);
+static_assert(Status::kPages.size() == 4);
 static_assert(layout::loop_detection::kQueryFrame.length == 32 && layout::loop_detection::kMatchFrame.length == 32);
 static_assert(layout::vehicle_odometry::kWheelSpeed.order == ByteOrder::Motorola);
 static_assert(kReceivedIds == std::array<std::uint32_t, 2>{0x120, 0x1A0});
@@ -123,6 +123,20 @@ TEST_CASE("Status page 2 (20-bit fields across byte boundaries) encodes to the h
   status.landmark_count = 0x12345;
   status.sequence_count = 0xABCDE;
   CHECK(encoded(status, 0xF) == Bytes{0x21, 0x2F, 0xA2, 0x45, 0x23, 0xE1, 0xCD, 0xAB});
+}
+
+TEST_CASE("Status page 3 (the camera's blindness) encodes to the hand-worked bytes") {
+  // byte 1: counter 0x3, page 3 -> 0x33. byte 2: state Fault = 3 -> 0x03.
+  // byte 3: FaultCameraBlind bit 24 -> 0x01, bits 25..31 unused.
+  // FramesBlind 0x12345678 at bits 32..63, little-endian: 78 56 34 12.
+  // CRC over 02 52 33 03 01 78 56 34 12 = 0x5F.
+  Status status;
+  status.status_page = StatusPage::Perception;
+  status.system_state = SystemState::Fault;
+  status.fault_camera_blind = true;
+  status.frames_blind = 0x12345678;
+  status.frames_processed = 0xFFFFFFFF;  // page 0's: must not leak into page 3
+  CHECK(encoded(status, 0x3) == Bytes{0x5F, 0x33, 0x03, 0x01, 0x78, 0x56, 0x34, 0x12});
 }
 
 // ---- round trips ----------------------------------------------------------------
@@ -266,6 +280,8 @@ TEST_CASE("Status round-trips every page with state and flags on each") {
   sent.loop_time_max_ms = 12.345;      // -> 1234.5 -> 1235 -> 12.35
   sent.landmark_count = 1048576;       // one beyond 20 bits: saturates
   sent.sequence_count = 0;
+  sent.fault_camera_blind = true;
+  sent.frames_blind = 4294967295U;
 
   Status received;
   for (const StatusPage page : Status::kPages) {
@@ -284,6 +300,8 @@ TEST_CASE("Status round-trips every page with state and flags on each") {
   CHECK(received.loop_time_max_ms == Catch::Approx(12.35));
   CHECK(received.landmark_count == 1048575);
   CHECK(received.sequence_count == 0);
+  CHECK(received.fault_camera_blind);
+  CHECK(received.frames_blind == 4294967295U);
 }
 
 // ---- rejection --------------------------------------------------------------------

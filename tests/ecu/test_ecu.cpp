@@ -8,6 +8,7 @@
 #include "ecu/ecu.hpp"
 #include "ecu_test_support.hpp"
 #include "perception/camera_model.hpp"
+#include "../perception/synthetic_road.hpp"
 
 using namespace markloop;
 using namespace markloop::ecu;
@@ -181,7 +182,7 @@ TEST_CASE("a bus that refuses frames (queue full, bus-off, down) is counted and 
   driver.drive(5s);
   bus.refuse_with = std::make_error_code(std::errc::no_buffer_space);
   driver.drive(6s);
-  CHECK(ecu.counters().send_errors == 10 * 3);
+  CHECK(ecu.counters().send_errors == 10 * dbc::Status::kPages.size());
   bus.refuse_with = {};
   ecu.send_status(6s);
   CHECK(bus.status.fault_bus_error);
@@ -228,6 +229,47 @@ TEST_CASE("camera lost and back") {
   driver.drive(3s);
   CHECK_FALSE(bus.status.fault_camera_lost);
   CHECK(bus.status.system_state == dbc::SystemState::Running);
+}
+
+TEST_CASE("a camera that shows no road is blind after camera.blind_frames frames, until as many show road") {
+  RecordingBus bus;
+  EcuConfig config = test_config();
+  config.camera.blind_frames = 5;
+  const perception::CameraModel camera = perception::default_camera_model();
+  Ecu ecu(config, camera, {}, &bus, nullptr);
+  const cv::Mat road =
+      perception::testing::render_road(camera, {{3.0, 25.0, 1.7, 1.85}, {3.0, 25.0, -1.85, -1.7}});
+  const cv::Mat covered(camera.height(), camera.width(), CV_8UC1, cv::Scalar(3));
+  Nanoseconds t{0};
+  const auto frames = [&](const cv::Mat& image, int n) {
+    for (int i = 0; i < n; ++i) {
+      ecu.on_frame(image, t, SteadyClock::now());
+      t += 100ms;
+      ecu.send_status(t);
+    }
+  };
+  frames(road, 3);
+  CHECK_FALSE(bus.status.fault_camera_blind);
+  frames(covered, 4);  // a splash on the lens: not yet a fault
+  frames(road, 1);
+  CHECK_FALSE(bus.status.fault_camera_blind);
+  CHECK(bus.status.frames_blind == 4);
+  frames(covered, 4);
+  CHECK_FALSE(bus.status.fault_camera_blind);
+  frames(covered, 1);  // the fifth in a row
+  CHECK(bus.status.fault_camera_blind);
+  CHECK(bus.status.system_state == dbc::SystemState::Fault);
+  CHECK_FALSE(bus.status.fault_camera_lost);
+  frames(road, 4);  // road for a moment: still blind
+  frames(covered, 1);
+  frames(road, 4);
+  CHECK(bus.status.fault_camera_blind);
+  frames(road, 1);  // the fifth in a row
+  CHECK_FALSE(bus.status.fault_camera_blind);
+  CHECK(bus.status.system_state != dbc::SystemState::Fault);
+  CHECK(bus.status.frames_blind == 10);
+  CHECK(ecu.counters().frames_blind == 10);
+  CHECK(ecu.detector().counters().flat_frames == 10);
 }
 
 TEST_CASE("Command SaveMap writes the map, ResetDatabase empties it, bad commands are refused") {

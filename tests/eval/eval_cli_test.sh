@@ -40,7 +40,7 @@ check "no detections file: note" 0 "ecu-detections.csv not found: marking detect
 check "--detections missing" 2 "absent.csv: cannot open file" -- "$eval_tool" "$run" --detections "$run/absent.csv"
 
 run=$(fresh badcan) && printf '(0000000080.000000) vcan0 2A0#00\n(0000000080.100000) vcan0 2A0#XY\n' >>"$run/ecu-can.log"
-check "bad candump line" 2 "^markloop-eval: $run/ecu-can.log:30:" -- "$eval_tool" "$run"
+check "bad candump line" 2 "^markloop-eval: $run/ecu-can.log:33:" -- "$eval_tool" "$run"
 run=$(fresh badvisible) && printf '12,9,stop,1,2,3,4,5,6,7\n' >>"$run/visible.csv"
 check "short visible line" 2 "^markloop-eval: $run/visible.csv:6: expected 11 comma-separated fields" -- "$eval_tool" "$run"
 run=$(fresh badframes) && sed -i '5s/.*/3,0.3,abc,0,0/' "$run/frames.csv"

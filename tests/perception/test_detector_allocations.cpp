@@ -15,6 +15,7 @@
 #include "support/count_allocations.hpp"
 
 using namespace markloop::perception;
+using markloop::perception::testing::clutter_frame;
 using markloop::perception::testing::garbage_frame;
 using markloop::perception::testing::GroundRect;
 using markloop::perception::testing::render_road;
@@ -65,12 +66,13 @@ TEST_CASE("detect() allocates nothing, frame after frame", "[perception][memory]
   (void)detections;
 }
 
-TEST_CASE("detect() allocates nothing at its caps either (frames of noise and checkerboards)",
+TEST_CASE("detect() allocates nothing at its caps either, nor on noise (paint everywhere, garbage)",
           "[perception][memory]") {
   const CameraModel camera = default_camera_model();
   MarkingDetector detector(camera);
   std::vector<cv::Mat> frames;
-  for (int k = 0; k < 8; ++k) frames.push_back(garbage_frame(camera, k));
+  for (int k = 0; k < 8; ++k) frames.push_back(clutter_frame(camera, k));
+  for (int k = 0; k < 4; ++k) frames.push_back(garbage_frame(camera, k));
   detector.detect(frames[0]);
   AllocationCounter heap;
   for (int round = 0; round < 2; ++round)
@@ -78,6 +80,7 @@ TEST_CASE("detect() allocates nothing at its caps either (frames of noise and ch
   const std::size_t allocations = heap.stop();
   CHECK(allocations == 0);
   CHECK(detector.counters().candidates_dropped > 0);
+  CHECK(detector.counters().noisy_frames > 0);
 }
 
 TEST_CASE("the horizon from the lane lines allocates nothing, when it moves the view either",

@@ -10,6 +10,7 @@
 #include <catch2/catch_test_macros.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/core/persistence.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "perception/marking_classes.hpp"
 #include "perception/marking_classifier.hpp"
@@ -17,6 +18,7 @@
 #include "synthetic_road.hpp"
 
 using namespace markloop::perception;
+using markloop::perception::testing::clutter_frame;
 using markloop::perception::testing::garbage_frame;
 using markloop::perception::testing::GroundLine;
 using markloop::perception::testing::GroundRect;
@@ -570,33 +572,109 @@ TEST_CASE("detector: an empty road gives nothing; wrong frames are counted, not 
   CHECK(detector.counters().frames == 3);
 }
 
-TEST_CASE("detector: frames of noise and checkerboards give no markings; candidates over the cap are counted") {
+TEST_CASE("detector: frames of noise and checkerboards are taken for noise and not searched") {
   const CameraModel camera = default_camera_model();
   MarkingDetector detector(camera);
-  std::size_t detections = 0;
   for (int k = 0; k < 20; ++k) {
-    detections += detector.detect(garbage_frame(camera, k)).size();
-    CHECK(detector.candidates().size() <= kMaxCandidates);
+    CHECK(detector.detect(garbage_frame(camera, k)).empty());
+    CHECK(detector.last_view() == ViewKind::Noisy);
+    CHECK(detector.candidates().empty());
+    CHECK(detector.lane_segments().empty());
+    CHECK(cv::countNonZero(detector.paint_mask()) == 0);
   }
-  CHECK(detections == 0);
   const DetectorCounters& counters = detector.counters();
   CHECK(counters.frames == 20);
-  CHECK(counters.bad_frames == 0);     // the right size and type: processed...
-  CHECK(counters.candidates_dropped > 0);  // ...up to the cap, the rest counted
-  CHECK(counters.detections == 0);
+  CHECK(counters.bad_frames == 0);  // the right size and type: looked at, and judged
+  CHECK(counters.noisy_frames == 20);
+  CHECK(counters.candidates == 0);
 }
 
-TEST_CASE("detector: frames whose paint overflows the caps do not move the horizon") {
+TEST_CASE("detector: paint everywhere overflows the cap, is counted, and reports nothing") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  std::uint64_t cluttered = 0, withheld = 0;
+  for (int k = 0; k < 20; ++k) {
+    const DetectorCounters before = detector.counters();
+    const std::size_t found = detector.detect(clutter_frame(camera, k)).size();
+    CHECK(detector.candidates().size() <= kMaxCandidates);
+    const DetectorCounters& after = detector.counters();
+    const bool overflowed = after.candidates_dropped + after.parts_dropped >
+                            before.candidates_dropped + before.parts_dropped;
+    CHECK(detector.last_view() == (overflowed ? ViewKind::Cluttered : ViewKind::Road));
+    if (overflowed) {
+      CHECK(found == 0);
+      ++cluttered;
+      withheld += after.detections_withheld - before.detections_withheld;
+    }
+    CHECK(after.detections - before.detections == found);
+  }
+  CHECK(cluttered > 0);
+  CHECK(withheld > 0);  // rows of tiles pass for crosswalks
+  CHECK(detector.counters().cluttered_frames == cluttered);
+}
+
+TEST_CASE("detector: a view that shows no road is told apart: flat, noisy, cluttered, unusable") {
+  const CameraModel camera = default_camera_model();
+  MarkingDetector detector(camera);
+  // Bare asphalt (+-6 grey levels of texture), and a road with its lines.
+  detector.detect(render_road(camera, {}));
+  CHECK(detector.last_view() == ViewKind::Road);
+  CHECK(detector.last_view_spread().pixels > 2.0f);  // 2.5: the warp averages the texture
+  const cv::Mat road = render_road(camera, {{3.0, 25.0, 1.7, 1.85}, {3.0, 25.0, -1.85, -1.7}});
+  detector.detect(road);
+  CHECK(detector.last_view() == ViewKind::Road);
+  // A covered lens or darkness (black with a sensor's noise), a stuck sensor
+  // (mid-grey), an overexposed one (white).
+  cv::Mat frame(camera.height(), camera.width(), CV_8UC1);
+  cv::RNG rng(7);
+  for (const int grey : {0, 128, 255}) {
+    rng.fill(frame, cv::RNG::NORMAL, grey, 1.0);
+    CHECK(detector.detect(frame).empty());
+    CHECK(detector.last_view() == ViewKind::Flat);
+    CHECK(detector.last_view_spread().pixels < 1.0f);
+  }
+  // Noise as strong as paint's contrast: its blocks hardly vary.
+  rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
+  detector.detect(frame);
+  CHECK(detector.last_view() == ViewKind::Noisy);
+  CHECK(detector.last_view_spread().blocks < 0.35f * detector.last_view_spread().pixels);
+  // The road under a sensor's noise of 6 grey levels (the simulator's night)
+  // is still a road.
+  cv::Mat noise(road.size(), CV_16SC1), sum;
+  rng.fill(noise, cv::RNG::NORMAL, 0, 6.0);
+  road.convertTo(sum, CV_16SC1);
+  sum += noise;
+  sum.convertTo(frame, CV_8UC1);
+  detector.detect(frame);
+  CHECK(detector.last_view() == ViewKind::Road);
+  // Paint everywhere, over the cap.
+  bool cluttered = false;
+  for (int k = 0; k < 20 && !cluttered; ++k) {
+    detector.detect(clutter_frame(camera, k));
+    cluttered = detector.last_view() == ViewKind::Cluttered;
+  }
+  CHECK(cluttered);
+  // Not even looked at.
+  detector.detect(cv::Mat(10, 10, CV_8UC1, cv::Scalar(0)));
+  CHECK(detector.last_view() == ViewKind::Unusable);
+  const DetectorCounters& counters = detector.counters();
+  CHECK(counters.flat_frames == 3);
+  CHECK(counters.noisy_frames == 1);
+  CHECK(counters.bad_frames == 1);
+}
+
+TEST_CASE("detector: frames of paint everywhere or noise do not move the horizon") {
   const CameraModel camera = default_camera_model();
   DetectorConfig config;
   config.horizon_from_lanes = true;
   MarkingDetector detector(camera, config);
-  for (int k = 1; k < 20; k += 2) detector.detect(garbage_frame(camera, k));  // the checkerboards
+  for (int k = 0; k < 20; ++k) detector.detect(clutter_frame(camera, k));
+  for (int k = 0; k < 20; ++k) detector.detect(garbage_frame(camera, k));
   const DetectorCounters& counters = detector.counters();
-  CHECK(counters.frames == 10);
+  CHECK(counters.frames == 40);
   CHECK(counters.candidates_dropped > 0);
   CHECK(counters.horizon_measured == 0);
-  CHECK(counters.horizon_unmeasured == 10);
+  CHECK(counters.horizon_unmeasured == 40);
   CHECK(counters.horizon_moves == 0);
   CHECK(detector.horizon_shift() == 0);
 }
