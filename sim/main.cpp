@@ -66,6 +66,9 @@ options:
   --class-weights LIST  NAME=W,... relative frequency of the marking classes
   --no-render       no frames.y4m / visible.csv (fast, for long drives)
   --max-frames N    stop after N frames
+  --cover-lens FROM:TO  the camera's lens covered from FROM until TO seconds
+                    into the drive: black frames with the sensor's noise, no
+                    marking visible
   --help            this text
 
 training-set: images/NNNNNN.png and annotations.csv (image,label,x1,y1,...,
@@ -115,7 +118,7 @@ int drive(int argc, char** argv) {
         option_value(argc, argv, i,
                      {"--scenario", "--route", "--out", "--seed", "--speed", "--fps", "--laps", "--camera",
                       "--max-frames", "--occluders", "--noise", "--wear", "--drift", "--light",
-                      "--class-weights"});
+                      "--class-weights", "--cover-lens"});
     if (arg == "--scenario") scenario_name = value;
     else if (arg == "--route") route_file = value;
     else if (arg == "--out") out_dir = value;
@@ -129,6 +132,15 @@ int drive(int argc, char** argv) {
     else if (arg == "--noise") options.conditions.noise_sigma = parse_number(arg, value);
     else if (arg == "--wear") options.conditions.paint_wear = parse_number(arg, value);
     else if (arg == "--drift") drift = parse_number(arg, value);
+    else if (arg == "--cover-lens") {
+      const std::string_view span = value;
+      const std::size_t colon = span.find(':');
+      if (colon == std::string_view::npos) fail("--cover-lens: expected FROM:TO (seconds), got '" + std::string(span) + "'");
+      options.lens_covered_from_s = parse_number(arg, std::string(span.substr(0, colon)).c_str());
+      options.lens_covered_until_s = parse_number(arg, std::string(span.substr(colon + 1)).c_str());
+      if (options.lens_covered_from_s < 0 || options.lens_covered_until_s <= options.lens_covered_from_s)
+        fail("--cover-lens: expected 0 <= FROM < TO, got '" + std::string(span) + "'");
+    }
     else if (arg == "--light") {
       const auto light = illumination_from_name(value);
       if (!light) fail(std::string("--light: unknown '") + value + "' (day, dusk, night, wet-glare)");

@@ -199,7 +199,14 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
                     scenario.road.length());
       occluders_at(conditions, frame.estimate.t, scenario.road, car_s, frame.truth, 3.5, occluders);
       const double start = thread_cpu_seconds();
-      renderer->render(frame.truth, options.drive.speed_mps, conditions, k, occluders, image);
+      const bool covered = frame.estimate.t >= options.lens_covered_from_s &&
+                           frame.estimate.t < options.lens_covered_until_s;
+      if (covered) {
+        cv::RNG sensor(options.seed + k);
+        sensor.fill(image, cv::RNG::NORMAL, 4.0, conditions.noise_sigma);
+      } else {
+        renderer->render(frame.truth, options.drive.speed_mps, conditions, k, occluders, image);
+      }
       summary.render_seconds += thread_cpu_seconds() - start;
       if (!video.write_frame({image.data, image.total()})) {
         error = video.error();
@@ -207,6 +214,7 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
       }
       renderer->visible_markings(frame.truth, options.visible_near_m, options.visible_far_m,
                                  occluders, seen);
+      if (covered) seen.clear();
       for (const VisibleMarking& v : seen) write_quad_row(visible->get(), k, v, false);
       summary.visible_rows += seen.size();
     }

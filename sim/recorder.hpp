@@ -33,6 +33,11 @@ struct RecordOptions {
   std::size_t max_frames = 0;  // 0 = the whole drive
   double visible_near_m = 3.0;  // visible.csv: centre this far ahead ...
   double visible_far_m = 25.0;  // ... up to this
+  // Frames from lens_covered_from_s until lens_covered_until_s (seconds of
+  // the drive) show a covered lens: black but for the sensor's noise, no
+  // marking visible (the ECU's blind camera, FaultCameraBlind).
+  double lens_covered_from_s = 0.0;
+  double lens_covered_until_s = 0.0;
   bool progress = true;        // every 10 % on stderr
 };
 
