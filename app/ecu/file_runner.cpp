@@ -74,17 +74,11 @@ int run_file_mode(const RunOptions& options) {
   EcuConfig config = options.config;
   const bool quiet = options.quiet;
   io::Y4mReader frames;
-  if (!frames.open(config.camera.file)) {
+  if (!frames.open(config.camera.file, options.camera.width(), options.camera.height())) {
     std::fprintf(stderr, "markloop: %s\n", frames.error().c_str());
     return 2;
   }
   const io::Y4mFormat format = frames.format();
-  if (format.width != options.camera.width() || format.height != options.camera.height()) {
-    std::fprintf(stderr, "markloop: %s: frames are %dx%d, the calibration is for %dx%d\n",
-                 config.camera.file.c_str(), format.width, format.height, options.camera.width(),
-                 options.camera.height());
-    return 2;
-  }
   if (format.fps_numerator <= 0 || format.fps_denominator <= 0) {
     std::fprintf(stderr, "markloop: %s: frame rate %d:%d is not usable\n", config.camera.file.c_str(),
                  format.fps_numerator, format.fps_denominator);

@@ -53,6 +53,16 @@ bool Y4mReader::fail(const std::string& what) {
   return false;
 }
 
+bool Y4mReader::open(const std::string& path, int width, int height) {
+  if (!open(path)) return false;
+  if (format_.width == width && format_.height == height) return true;
+  const std::string sizes = "frames are " + std::to_string(format_.width) + "x" +
+                            std::to_string(format_.height) + ", the camera's " +
+                            std::to_string(width) + "x" + std::to_string(height);
+  close();
+  return fail(sizes);
+}
+
 bool Y4mReader::open(const std::string& path) {
   close();
   path_ = path;

@@ -41,6 +41,9 @@ class Y4mReader {
 
   // Opens and parses the stream header. On failure, error() says why.
   bool open(const std::string& path);
+  // ... and checks that the frames are width x height, a camera's (error():
+  // "PATH: frames are WxH, the camera's WxH").
+  bool open(const std::string& path, int width, int height);
   void close();
 
   const Y4mFormat& format() const { return format_; }

@@ -110,11 +110,7 @@ int main(int argc, char** argv) {
   markloop::io::Y4mReader reader;
   std::vector<cv::Mat> synthetic;
   if (!y4m_path.empty()) {
-    if (!reader.open(y4m_path)) markloop::cli::fail(reader.error());
-    if (reader.format().width != camera.width() || reader.format().height != camera.height())
-      markloop::cli::fail(y4m_path + ": frames are " + std::to_string(reader.format().width) + "x" +
-                          std::to_string(reader.format().height) + ", the camera " +
-                          std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
+    if (!reader.open(y4m_path, camera.width(), camera.height())) markloop::cli::fail(reader.error());
   } else if (frame_source != nullptr) {
     const bool garbage = std::string_view(frame_source) == "garbage";
     for (int k = 0; k < 20; ++k)

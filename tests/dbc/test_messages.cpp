@@ -414,7 +414,7 @@ TEST_CASE("decode rejects a page the DBC does not define") {
     CHECK(decode(payload_of<LoopDetection>(bytes), out) == DecodeError::UnknownPage);
   }
   Bytes bytes = encoded(Status{});
-  bytes[1] = static_cast<std::uint8_t>((bytes[1] & 0x0F) | (3 << 4));
+  bytes[1] = static_cast<std::uint8_t>((bytes[1] & 0x0F) | (4 << 4));
   reseal<Status>(bytes);
   Status out;
   CHECK(decode(payload_of<Status>(bytes), out) == DecodeError::UnknownPage);

@@ -91,3 +91,21 @@ TEST_CASE("Y4M: damaged files are reported with the path and the frame") {
   CHECK(reader.error().find("frame 1") != std::string::npos);
   CHECK(reader.error().find("truncated") != std::string::npos);
 }
+
+TEST_CASE("Y4M: a stream not of the camera's size is refused, with both sizes") {
+  const auto path = scratch("sized.y4m");
+  Y4mWriter writer;
+  REQUIRE(writer.open(path, 6, 4, 10));
+  REQUIRE(writer.write_frame(std::vector<std::uint8_t>(24, 7)));
+  REQUIRE(writer.close());
+
+  Y4mReader reader;
+  CHECK(reader.open(path, 6, 4));
+  std::vector<std::uint8_t> luma(24);
+  CHECK(reader.read_frame(luma) == Y4mRead::kFrame);
+  CHECK_FALSE(reader.open(path, 8, 4));
+  CHECK(reader.error() == path + ": frames are 6x4, the camera's 8x4");
+  CHECK(reader.read_frame(luma) == Y4mRead::kError);  // closed: nothing to read
+  CHECK_FALSE(reader.open(scratch("none.y4m"), 6, 4));
+  CHECK(reader.error().rfind(scratch("none.y4m") + ": ", 0) == 0);
+}

@@ -233,11 +233,8 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   markloop::io::Y4mReader video;
   long video_frame = -1;
   cv::Mat video_grey(camera->height(), camera->width(), CV_8UC1);
-  if (drive && !video.open(dir + "/frames.y4m")) fail(video.error());
-  if (drive && (video.format().width != camera->width() || video.format().height != camera->height()))
-    fail(dir + "/frames.y4m: frames are " + std::to_string(video.format().width) + "x" +
-         std::to_string(video.format().height) + ", the camera's " + std::to_string(camera->width()) +
-         "x" + std::to_string(camera->height()));
+  if (drive && !video.open(dir + "/frames.y4m", camera->width(), camera->height()))
+    fail(video.error());
   const auto& region = config.region;
   cv::Mat mirrored_bev, mirrored_mask;  // the current image's bird's-eye view, left and right swapped
   int mirrored_for = -1;
