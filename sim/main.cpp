@@ -133,15 +133,14 @@ int drive(int argc, char** argv) {
     else if (arg == "--wear") options.conditions.paint_wear = parse_number(arg, value);
     else if (arg == "--drift") drift = parse_number(arg, value);
     else if (arg == "--cover-lens") {
-      const std::string_view span = value;
+      const std::string span = value;
       const std::size_t colon = span.find(':');
-      if (colon == std::string_view::npos) fail("--cover-lens: expected FROM:TO (seconds), got '" + std::string(span) + "'");
-      options.lens_covered_from_s = parse_number(arg, std::string(span.substr(0, colon)).c_str());
-      options.lens_covered_until_s = parse_number(arg, std::string(span.substr(colon + 1)).c_str());
+      if (colon == std::string::npos) fail("--cover-lens: expected FROM:TO (seconds), got '" + span + "'");
+      options.lens_covered_from_s = parse_number(arg, span.substr(0, colon).c_str());
+      options.lens_covered_until_s = parse_number(arg, span.substr(colon + 1).c_str());
       if (options.lens_covered_from_s < 0 || options.lens_covered_until_s <= options.lens_covered_from_s)
-        fail("--cover-lens: expected 0 <= FROM < TO, got '" + std::string(span) + "'");
-    }
-    else if (arg == "--light") {
+        fail("--cover-lens: expected 0 <= FROM < TO, got '" + span + "'");
+    } else if (arg == "--light") {
       const auto light = illumination_from_name(value);
       if (!light) fail(std::string("--light: unknown '") + value + "' (day, dusk, night, wet-glare)");
       options.conditions.light = *light;

@@ -482,7 +482,8 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
   if (kind_of(last_view_spread_) != ViewKind::Road) {
     // No road to look for paint on: whatever "paint" noise or a flat grey
     // showed would be no marking, and costs the most time of all frames.
-    for (int r = 0; r < mask_.rows; ++r) std::fill_n(mask_.ptr<std::uint8_t>(r), mask_.cols, std::uint8_t{0});
+    for (int r = 0; r < mask_.rows; ++r)
+      std::fill_n(mask_.ptr<std::uint8_t>(r), mask_.cols, std::uint8_t{0});
     lane_segment_count_ = 0;
     return;
   }

@@ -174,9 +174,9 @@ struct DetectorConfig {
   // road's lines, verges and light do not). Other views are not searched
   // for markings. Measured (markloop-detector-bench, markloop-detect): the
   // real images' views 14.4 and more, and 0.69 and more; the simulator's
-  // drives in every light 15.5 and 0.63; frames of noise and checkerboards
-  // 0.21 at most; black, grey or white with a sensor's noise of 1 grey
-  // level: below 1.
+  // drives in every light 15.5 and more, and 0.63 and more; frames of noise
+  // and checkerboards 0.21 at most; black, grey or white with a sensor's
+  // noise of 1 grey level: below 1.
   float min_view_spread = 1.5f;
   float min_view_coherence = 0.35f;
 };

@@ -109,8 +109,8 @@ inline cv::Mat garbage_frame(const CameraModel& camera, int k) {
 // A road with paint everywhere, in pieces a marking's size (tiles 0.6 to
 // 0.8 m square, 0.5 to 0.8 m apart, by k): a car park's tiles, a road under
 // repair, a camera taking a painted wall for the road. It passes for a road,
-// and has more pieces than the detector's cap on the candidates it
-// classifies: its worst case.
+// and 12 of k = 0..19 have more pieces than the detector's cap on the
+// candidates it classifies (the simulator's camera): its worst case.
 inline cv::Mat clutter_frame(const CameraModel& camera, int k) {
   const double side = 0.6 + 0.1 * (k % 3), period = side + 0.5 + 0.1 * (k % 4);
   return render_road_where(camera, [&](const Eigen::Vector2d& g) {
