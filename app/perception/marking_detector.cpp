@@ -272,11 +272,8 @@ std::span<const Detection> MarkingDetector::detect_still(const cv::Mat& grey) {
 }
 
 ViewKind MarkingDetector::kind_of(ViewSpread spread) const {
-  if (spread.pixels < config_.min_view_spread) return ViewKind::Flat;
-  // Noise as strong as paint's contrast, and no more than noise.
-  if (spread.pixels >= static_cast<float>(config_.min_contrast) &&
-      spread.blocks < config_.min_view_coherence * spread.pixels)
-    return ViewKind::Noisy;
+  if (spread.blocks < config_.min_view_spread) return ViewKind::Flat;
+  if (spread.blocks < config_.min_view_coherence * spread.pixels) return ViewKind::Noisy;
   return ViewKind::Road;
 }
 

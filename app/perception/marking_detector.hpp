@@ -165,20 +165,19 @@ struct DetectorConfig {
   // at least this probability (marking_classifier.hpp); above 1: always run
   // (detector_skip_networks_at).
   float skip_networks_at = 0.9f;
-  // What a view of a road looks like (ViewSpread): its pixels' grey varies
+  // What a view of a road looks like (ViewSpread): its blocks' grey varies
   // by at least min_view_spread (standard deviation, grey levels; less is
   // ViewKind::Flat: a covered lens, darkness, an overexposed or stuck
-  // sensor), and where it varies by min_contrast or more (noise strong
-  // enough to pass for paint), its blocks' by at least min_view_coherence
-  // of that (less is ViewKind::Noisy: noise averages out in a block, a
+  // sensor, whatever its noise), and by at least min_view_coherence of its
+  // pixels' (less is ViewKind::Noisy: noise averages out in a block, a
   // road's lines, verges and light do not). Other views are not searched
   // for markings. Measured (markloop-detector-bench, markloop-detect): the
-  // real images' views 14.4 and more, and 0.69 and more; the simulator's
-  // drives in every light 15.5 and more, and 0.63 and more; frames of noise
-  // and checkerboards 0.21 at most; black, grey or white with a sensor's
-  // noise of 1 grey level: below 1.
-  float min_view_spread = 1.5f;
-  float min_view_coherence = 0.35f;
+  // real images' views 12.7 and more, and 0.69 and more; the simulator's
+  // drives in every light 11.0 and more, and 0.63 and more; frames of noise
+  // and checkerboards 0.21 at most; the simulator's covered lens 0.15 at
+  // most, under 1 with noise of up to 8 grey levels.
+  float min_view_spread = 1.0f;
+  float min_view_coherence = 0.25f;
 };
 
 // Reads the optional detector_* keys of a calibration file (OpenCV YAML), so

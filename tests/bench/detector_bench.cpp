@@ -130,10 +130,10 @@ int main(int argc, char** argv) {
   ms.reserve(frames);
   cpu_ms.reserve(frames);
   std::size_t detections = 0, candidates = 0;
-  // Each timed frame's view: how much its pixels' grey varies, and its
-  // blocks' against that (ViewSpread).
-  std::vector<double> pixel_spreads, coherences;
-  pixel_spreads.reserve(frames);
+  // Each timed frame's view: how much its blocks' grey varies, and that
+  // against its pixels' (ViewSpread).
+  std::vector<double> block_spreads, coherences;
+  block_spreads.reserve(frames);
   coherences.reserve(frames);
   std::array<std::size_t, 5> views{};  // frames by ViewKind
   std::bitset<1024> cores;  // the CPUs the timed frames started on
@@ -156,7 +156,7 @@ int main(int argc, char** argv) {
     cpu_ms.push_back(thread_cpu_ms() - c0);
     candidates += detector.candidates().size();
     const ViewSpread spread = detector.last_view_spread();
-    pixel_spreads.push_back(spread.pixels);
+    block_spreads.push_back(spread.blocks);
     coherences.push_back(spread.pixels > 0.0f ? spread.blocks / spread.pixels : 0.0);
     ++views[static_cast<std::size_t>(detector.last_view())];
     ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
@@ -187,12 +187,12 @@ int main(int argc, char** argv) {
                 kMaxParts, kMaxCandidates, static_cast<unsigned long long>(c.parts_dropped),
                 static_cast<unsigned long long>(c.candidates_dropped));
   const auto frames_of = [&](ViewKind kind) { return views[static_cast<std::size_t>(kind)]; };
-  std::printf("views: %zu road, %zu flat, %zu noisy, %zu cluttered; pixels' grey spread min %.1f, "
-              "median %.1f, max %.1f (flat below %.1f); blocks' against it min %.2f, median %.2f, "
+  std::printf("views: %zu road, %zu flat, %zu noisy, %zu cluttered; blocks' grey spread min %.2f, "
+              "median %.2f, max %.2f (flat below %.2f); against the pixels' min %.2f, median %.2f, "
               "max %.2f (noisy below %.2f)\n",
               frames_of(ViewKind::Road), frames_of(ViewKind::Flat), frames_of(ViewKind::Noisy),
-              frames_of(ViewKind::Cluttered), percentile(pixel_spreads, 0.0),
-              percentile(pixel_spreads, 0.5), percentile(pixel_spreads, 1.0), config.min_view_spread,
+              frames_of(ViewKind::Cluttered), percentile(block_spreads, 0.0),
+              percentile(block_spreads, 0.5), percentile(block_spreads, 1.0), config.min_view_spread,
               percentile(coherences, 0.0), percentile(coherences, 0.5), percentile(coherences, 1.0),
               config.min_view_coherence);
   if (config.horizon_from_lanes) {

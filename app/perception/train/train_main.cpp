@@ -349,7 +349,14 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
       }
     }
   }
-  std::printf("%s: %d images, %zu candidates\n", dir.c_str(), loaded, set.samples.size());
+  const DetectorCounters& views = detector.counters();
+  std::printf("%s: %d images, %zu candidates", dir.c_str(), loaded, set.samples.size());
+  if (const std::uint64_t no_road = views.flat_frames + views.noisy_frames + views.cluttered_frames)
+    std::printf(" (%llu images showing no road: %llu flat, %llu noisy, %llu cluttered)",
+                static_cast<unsigned long long>(no_road), static_cast<unsigned long long>(views.flat_frames),
+                static_cast<unsigned long long>(views.noisy_frames),
+                static_cast<unsigned long long>(views.cluttered_frames));
+  std::printf("\n");
   return set;
 }
 
