@@ -10,7 +10,6 @@
 #include <catch2/catch_test_macros.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/core/persistence.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "perception/marking_classes.hpp"
 #include "perception/marking_classifier.hpp"
@@ -641,7 +640,7 @@ TEST_CASE("detector: a view that shows no road is told apart: flat, noisy, clutt
     CHECK(detector.detect(frame).empty());
     CHECK(detector.last_view() == (sigma < 10.0 ? ViewKind::Flat : ViewKind::Noisy));
   }
-  // Noise as strong as paint's contrast: its blocks hardly vary.
+  // Uniform noise: its blocks hardly vary against its pixels.
   rng.fill(frame, cv::RNG::UNIFORM, 0, 256);
   detector.detect(frame);
   CHECK(detector.last_view() == ViewKind::Noisy);
