@@ -227,11 +227,10 @@ std::span<const Detection> MarkingDetector::detect(const cv::Mat& grey) {
 std::span<const Detection> MarkingDetector::detect_frame(const cv::Mat& grey, bool still) {
   ++counters_.frames;
   if (!usable(grey)) return reject_frame();
-  const DetectorCounters before = counters_;
   process(grey, still);
   // A view that is no road (a failing sensor, noise) has "lane lines" that
   // would drag the horizon the frames after it are seen with.
-  const bool road_like = judge_view(before) == ViewKind::Road;
+  const bool road_like = count_view() == ViewKind::Road;
   if (config_.horizon_from_lanes && horizon_known_) {
     if (const std::optional<float> measured = road_like ? measure_horizon_shift() : std::nullopt) {
       ++counters_.horizon_measured;
@@ -267,7 +266,7 @@ std::span<const Detection> MarkingDetector::detect_still(const cv::Mat& grey) {
     measured = measure_horizon_shift();
   }
   ++(placed ? counters_.horizon_measured : counters_.horizon_unmeasured);
-  (void)judge_view(before);
+  (void)count_view();
   return {detections_.data(), detection_count_};
 }
 
@@ -277,22 +276,11 @@ ViewKind MarkingDetector::kind_of(ViewSpread spread) const {
   return ViewKind::Road;
 }
 
-ViewKind MarkingDetector::judge_view(const DetectorCounters& before) {
-  last_view_ = kind_of(last_view_spread_);
-  if (last_view_ == ViewKind::Road && counters_.parts_dropped + counters_.candidates_dropped >
-                                          before.parts_dropped + before.candidates_dropped)
-    last_view_ = ViewKind::Cluttered;
+ViewKind MarkingDetector::count_view() {
   switch (last_view_) {
     case ViewKind::Flat: ++counters_.flat_frames; break;
     case ViewKind::Noisy: ++counters_.noisy_frames; break;
-    case ViewKind::Cluttered:
-      // Examined in part only, up to the caps: what it found is no more
-      // trustworthy than what it left out.
-      ++counters_.cluttered_frames;
-      counters_.detections -= detection_count_;
-      counters_.detections_withheld += detection_count_;
-      detection_count_ = 0;
-      break;
+    case ViewKind::Cluttered: ++counters_.cluttered_frames; break;
     case ViewKind::Road:
     case ViewKind::Unusable: break;
   }
@@ -476,7 +464,8 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
   candidate_count_ = 0;
   birdseye_.warp(grey, bev_);
   last_view_spread_ = view_spread();
-  if (kind_of(last_view_spread_) != ViewKind::Road) {
+  last_view_ = kind_of(last_view_spread_);
+  if (last_view_ != ViewKind::Road) {
     // No road to look for paint on: whatever "paint" noise or a flat grey
     // showed would be no marking, and costs the most time of all frames.
     for (int r = 0; r < mask_.rows; ++r)
@@ -484,10 +473,13 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
     lane_segment_count_ = 0;
     return;
   }
+  const std::uint64_t over_caps = counters_.parts_dropped + counters_.candidates_dropped;
   threshold();
   cut_line_junctions();
   const std::size_t part_count = label_parts();
   group_parts(part_count);
+  if (counters_.parts_dropped + counters_.candidates_dropped > over_caps)
+    last_view_ = ViewKind::Cluttered;
   for (std::size_t i = 0; i < candidate_count_; ++i) classify(candidates_[i]);
   for (std::size_t i = 0; i < candidate_count_; ++i) {
     const Candidate& candidate = candidates_[i];
@@ -512,6 +504,12 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
     }
     if (candidate.score < config_.min_score) {
       ++counters_.low_score;
+      continue;
+    }
+    if (last_view_ == ViewKind::Cluttered) {
+      // Examined in part only, up to the caps: what it found is no more
+      // trustworthy than what it left out.
+      ++counters_.detections_withheld;
       continue;
     }
     if (detection_count_ == kMaxDetections) {

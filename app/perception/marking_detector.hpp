@@ -326,9 +326,8 @@ class MarkingDetector {
   std::uint8_t touched_edges(const Box& box) const;
   bool usable(const cv::Mat& grey) const;
   std::span<const Detection> reject_frame();
-  // Sets last_view_ (and counts it) from the frame just processed; `before`:
-  // the counters before it.
-  ViewKind judge_view(const DetectorCounters& before);
+  // Counts last_view_, as process() judged the frame, and returns it.
+  ViewKind count_view();
   // Flat, Noisy or Road, from the spread alone (config_.min_view_*).
   ViewKind kind_of(ViewSpread spread) const;
   ViewSpread view_spread() const;
