@@ -161,8 +161,60 @@ void json_spread(std::FILE* f, const char* name, const Spread& s) {
                s.count, s.median, s.p99, s.max, s.min);
 }
 
+const char* outcome_name(PassOutcome o) {
+  switch (o) {
+    case PassOutcome::NamedRight: return "named_right";
+    case PassOutcome::NamedWrong: return "named_wrong";
+    case PassOutcome::NoMajority: return "no_majority";
+    case PassOutcome::DetectedOnce: return "detected_once";
+    case PassOutcome::NotDetected: return "not_detected";
+  }
+  return "?";
+}
+
+std::string class_name(Label label) {
+  return label < perception::kMarkingClassCount ? std::string(perception::kMarkingClassNames[label]) : "?";
+}
+
+void print_passes(const PassScore& p) {
+  const std::size_t total = p.passes.size();
+  std::printf("\nMarkings driven past (a pass: the frames showing a marking, gaps under %.0f s; counted\n"
+              "when its centre came 3..20 m ahead and within 6 m to a side; named by the ECU's\n"
+              "landmark vote over the detections paired with it)\n",
+              kPassGap_s);
+  std::printf("  %-34s %zu\n", "passes", total);
+  std::printf("  %-34s %s (%zu)\n", "named right", percent_text(p.count(PassOutcome::NamedRight), total).c_str(),
+              p.count(PassOutcome::NamedRight));
+  std::printf("  %-34s %zu\n", "named wrong", p.count(PassOutcome::NamedWrong));
+  std::printf("  %-34s %zu\n", "no label with half the votes", p.count(PassOutcome::NoMajority));
+  std::printf("  %-34s %zu\n", "detected once (no landmark)", p.count(PassOutcome::DetectedOnce));
+  std::printf("  %-34s %zu\n", "not detected", p.count(PassOutcome::NotDetected));
+  std::printf("  %-14s %8s %8s %8s\n", "class", "passes", "right", "share");
+  for (std::size_t c = 0; c < p.passes_of_class.size(); ++c) {
+    if (p.passes_of_class[c] == 0) continue;
+    std::printf("  %-14s %8zu %8zu %8s\n", class_name(static_cast<Label>(c)).c_str(), p.passes_of_class[c],
+                p.named_right_of_class[c], percent_text(p.named_right_of_class[c], p.passes_of_class[c]).c_str());
+  }
+  constexpr std::size_t kListed = 20;
+  std::size_t listed = 0, unlisted = 0;
+  for (const MarkingPass& pass : p.passes) {
+    if (pass.outcome == PassOutcome::NamedRight) continue;
+    if (listed == kListed) {
+      ++unlisted;
+      continue;
+    }
+    ++listed;
+    std::printf("    %s: marking %u (%s), frames %u..%u, %zu detections", outcome_name(pass.outcome), pass.id,
+                class_name(pass.label).c_str(), pass.first_frame, pass.last_frame, pass.detections);
+    if (pass.detections > 0) std::printf(", most as %s", class_name(pass.named).c_str());
+    std::printf("\n");
+  }
+  if (unlisted > 0) std::printf("    ... %zu more (all in --json)\n", unlisted);
+}
+
 void write_json(const std::string& path, const Options& o, std::size_t frames, double length_m,
-                const EcuCanLog& log, const LoopScore& loops, const MarkingScore* markings) {
+                const EcuCanLog& log, const LoopScore& loops, const MarkingScore* markings,
+                const PassScore* passes) {
   std::FILE* f = open_output(path);
   const replay::Evaluation& e = loops.evaluation;
   std::fprintf(f, "{\"frames\":%zu,\"route_length_m\":%.1f,\"tolerance_m\":%g,", frames, length_m,
@@ -244,6 +296,32 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
     }
     std::fprintf(f, "]}");
   }
+  if (passes != nullptr) {
+    const PassScore& p = *passes;
+    std::fprintf(f, ",\"passes\":{\"count\":%zu", p.passes.size());
+    for (std::size_t i = 0; i < kPassOutcomeCount; ++i)
+      std::fprintf(f, ",\"%s\":%zu", outcome_name(static_cast<PassOutcome>(i)), p.outcomes[i]);
+    std::fprintf(f, ",\"per_class\":{");
+    bool first = true;
+    for (std::size_t c = 0; c < p.passes_of_class.size(); ++c) {
+      if (p.passes_of_class[c] == 0) continue;
+      std::fprintf(f, "%s\"%s\":{\"passes\":%zu,\"named_right\":%zu}", first ? "" : ",",
+                   class_name(static_cast<Label>(c)).c_str(), p.passes_of_class[c], p.named_right_of_class[c]);
+      first = false;
+    }
+    std::fprintf(f, "},\"not_named_right\":[");
+    first = true;
+    for (const MarkingPass& pass : p.passes) {
+      if (pass.outcome == PassOutcome::NamedRight) continue;
+      std::fprintf(f, "%s{\"id\":%u,\"class\":\"%s\",\"frames\":[%u,%u],\"detections\":%zu,\"outcome\":\"%s\"",
+                   first ? "" : ",", pass.id, class_name(pass.label).c_str(), pass.first_frame, pass.last_frame,
+                   pass.detections, outcome_name(pass.outcome));
+      if (pass.detections > 0) std::fprintf(f, ",\"named\":\"%s\"", class_name(pass.named).c_str());
+      std::fputc('}', f);
+      first = false;
+    }
+    std::fprintf(f, "]}");
+  }
   std::fprintf(f, "}\n");
   close_output(f, path);
 }
@@ -297,6 +375,8 @@ int main(int argc, char** argv) {
     have_markings = true;
   }
   const MarkingScore markings = have_markings ? score_markings(visible, detections) : MarkingScore{};
+  const PassScore passes =
+      have_markings ? score_passes(world, route, times, visible, markings) : PassScore{};
 
   // --- table ---
   const double length_m = route_length_m(route);
@@ -399,6 +479,7 @@ int main(int argc, char** argv) {
                   percent_text(markings.confusion[c][c], k.detections).c_str(),
                   percent_text(k.truth_right_label, k.truth_found).c_str());
     }
+    print_passes(passes);
   } else {
     std::printf("\nMarkings: %s\n", marking_note.c_str());
   }
@@ -432,7 +513,8 @@ int main(int argc, char** argv) {
   if (!write_png(o.png, figure, error)) fail(error);
   std::printf("\npicture: %s, %s\n", o.svg.c_str(), o.png.c_str());
   if (!o.json.empty()) {
-    write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr);
+    write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr,
+               have_markings ? &passes : nullptr);
     std::printf("figures: %s\n", o.json.c_str());
   }
   return 0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+#include <unordered_map>
 
 #include <opencv2/imgproc.hpp>
 
@@ -83,6 +84,100 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
   return score;
 }
 
+namespace {
+
+bool in_region(const WorldMarking& m, const Pose2& car, const PassRegion& region) {
+  const double dx = m.x - car.x, dy = m.y - car.y;
+  const double ahead = std::cos(car.yaw) * dx + std::sin(car.yaw) * dy;
+  const double side = -std::sin(car.yaw) * dx + std::cos(car.yaw) * dy;
+  return ahead >= region.ahead_min_m && ahead <= region.ahead_max_m && std::abs(side) <= region.side_m;
+}
+
+// The landmark vote over a pass's paired labels, in frame order.
+void vote(const std::vector<Label>& labels, MarkingPass& pass) {
+  pass.detections = labels.size();
+  if (labels.empty()) {
+    pass.outcome = PassOutcome::NotDetected;
+    return;
+  }
+  std::array<std::size_t, perception::kMarkingClassCount> votes{};
+  for (const Label l : labels)
+    if (l < votes.size()) ++votes[l];
+  // The most votes wins; of equals, the label voted for first.
+  std::size_t best = 0;
+  for (const Label l : labels) {
+    if (l < votes.size() && votes[l] > best) {
+      best = votes[l];
+      pass.named = l;
+    }
+  }
+  if (labels.size() < 2)
+    pass.outcome = PassOutcome::DetectedOnce;
+  else if (2 * best < labels.size())
+    pass.outcome = PassOutcome::NoMajority;
+  else
+    pass.outcome = pass.named == pass.label ? PassOutcome::NamedRight : PassOutcome::NamedWrong;
+}
+
+}  // namespace
+
+PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
+                       const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
+                       const MarkingScore& markings, const PassRegion& region) {
+  std::unordered_map<std::uint32_t, std::size_t> world_index;
+  for (std::size_t i = 0; i < world.size(); ++i) world_index.emplace(world[i].id, i);
+
+  // The visible rows of each marking in frame order (truth is sorted by frame).
+  std::vector<std::size_t> rows(truth.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) rows[i] = i;
+  std::stable_sort(rows.begin(), rows.end(),
+                   [&](std::size_t a, std::size_t b) { return truth[a].id < truth[b].id; });
+
+  auto time_of = [&](std::size_t row) {
+    return truth[row].frame < frame_times.size() ? frame_times[truth[row].frame] : 0.0;
+  };
+  PassScore score;
+  std::vector<Label> labels;
+  for (std::size_t begin = 0; begin < rows.size();) {
+    const VisibleMarking& first = truth[rows[begin]];
+    const auto found = world_index.find(first.id);
+    std::size_t end = begin + 1;
+    while (end < rows.size() && truth[rows[end]].id == first.id &&
+           time_of(rows[end]) - time_of(rows[end - 1]) <= kPassGap_s)
+      ++end;
+    if (found != world_index.end()) {
+      const WorldMarking& marking = world[found->second];
+      bool in_range = false;
+      labels.clear();
+      for (std::size_t i = begin; i < end; ++i) {
+        const std::size_t row = rows[i];
+        if (truth[row].frame < route.size() && in_region(marking, route[truth[row].frame], region))
+          in_range = true;
+        if (row < markings.paired_label.size() && markings.paired_label[row])
+          labels.push_back(*markings.paired_label[row]);
+      }
+      if (in_range) {
+        MarkingPass pass;
+        pass.id = first.id;
+        pass.label = first.label;
+        pass.first_frame = first.frame;
+        pass.last_frame = truth[rows[end - 1]].frame;
+        vote(labels, pass);
+        score.passes.push_back(pass);
+        ++score.outcomes[static_cast<std::size_t>(pass.outcome)];
+        if (pass.label < score.passes_of_class.size()) {
+          ++score.passes_of_class[pass.label];
+          if (pass.outcome == PassOutcome::NamedRight) ++score.named_right_of_class[pass.label];
+        }
+      }
+    }
+    begin = end;
+  }
+  std::stable_sort(score.passes.begin(), score.passes.end(),
+                   [](const MarkingPass& a, const MarkingPass& b) { return a.first_frame < b.first_frame; });
+  return score;
+}
+
 double intersection_over_union(const Quad& a, const Quad& b) {
   const auto ha = hull_of(a), hb = hull_of(b);
   const double area_a = cv::contourArea(ha), area_b = cv::contourArea(hb);
@@ -111,6 +206,7 @@ MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
   MarkingScore score;
   score.truth = truth.size();
   score.detections = detections.size();
+  score.paired_label.assign(truth.size(), std::nullopt);
   for (const VisibleMarking& t : truth) ++score.per_class[t.label].truth;
   for (const DetectionRecord& d : detections) ++score.per_class[d.label].detections;
 
@@ -153,6 +249,7 @@ MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
       ++score.per_class[truth_label].truth_found;
       ++score.per_class[detected].detections_matched;
       ++score.confusion[truth_label][detected];
+      score.paired_label[c.truth] = detected;
       if (truth_label == detected) {
         ++score.right_label;
         ++score.per_class[truth_label].truth_right_label;

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -75,6 +76,8 @@ struct MarkingScore {
   // confusion[truth class][detected label], over matched pairs.
   std::array<std::array<std::size_t, perception::kMarkingClassCount>, perception::kMarkingClassCount>
       confusion{};
+  // Per row of the visible markings: the label of the detection paired with it.
+  std::vector<std::optional<Label>> paired_label;
 };
 
 // A detection and a visible marking of the same frame match when the centre
@@ -83,6 +86,51 @@ struct MarkingScore {
 // made one to one, best overlap first. Both inputs sorted by frame.
 MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
                             const std::vector<DetectionRecord>& detections);
+
+// One pass of the car by a marking: the frames in which the simulator shows
+// it, none more than kPassGap_s after the one before (a revisit comes back
+// at least 10 s later; a vehicle in front hides a marking for less).
+inline constexpr double kPassGap_s = 5.0;
+
+// A pass counts when the marking's centre lay in the detector's default
+// region in one of its frames, in the car's frame (frames.csv's pose).
+struct PassRegion {
+  double ahead_min_m = 3.0;
+  double ahead_max_m = 20.0;
+  double side_m = 6.0;
+};
+
+// What the ECU's landmark vote (LandmarkTracker) would make of the
+// detections paired with a marking over one pass: the label with the most
+// votes, ties to the one detected first, wins when it holds at least half
+// of them; fewer than two make no landmark.
+enum class PassOutcome { NamedRight, NamedWrong, NoMajority, DetectedOnce, NotDetected };
+inline constexpr std::size_t kPassOutcomeCount = 5;
+
+struct MarkingPass {
+  std::uint32_t id = 0;
+  Label label = 0;
+  FrameIndex first_frame = 0, last_frame = 0;
+  std::size_t detections = 0;  // paired with the marking in the pass
+  Label named = 0;             // the vote's winner, when there were detections
+  PassOutcome outcome = PassOutcome::NotDetected;
+};
+
+struct PassScore {
+  std::vector<MarkingPass> passes;  // in range, by first frame
+  std::array<std::size_t, kPassOutcomeCount> outcomes{};
+  std::array<std::size_t, perception::kMarkingClassCount> passes_of_class{};
+  std::array<std::size_t, perception::kMarkingClassCount> named_right_of_class{};
+  std::size_t count(PassOutcome o) const { return outcomes[static_cast<std::size_t>(o)]; }
+};
+
+// Judges every marking the car drove past by the landmark vote on the
+// detections `markings` paired with it. `route` and `frame_times` are
+// frames.csv's; `truth` the visible markings `markings` was scored on.
+// A visible marking missing from `world` is not judged.
+PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
+                       const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
+                       const MarkingScore& markings, const PassRegion& region = {});
 
 double intersection_over_union(const Quad& a, const Quad& b);
 bool centre_inside(const Quad& detection, const Quad& truth);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -201,6 +202,101 @@ TEST_CASE("marking detections are matched to visible markings one to one") {
     CHECK(twice.matched == 3);
     CHECK(twice.detections == 6);
   }
+}
+
+TEST_CASE("each pass by a marking is named by the landmark vote on its paired detections") {
+  // The car drives along x at 1 m a frame, 10 frames a second; from frame
+  // 400 on it starts again at x = 0 (a second visit).
+  std::vector<Pose2> route;
+  std::vector<double> times;
+  for (std::size_t f = 0; f < 800; ++f) {
+    route.push_back({f < 400 ? double(f) : double(f) - 400.0, 0.0, 0.0});
+    times.push_back(double(f) / 10.0);
+  }
+  const Label forward = label_of("forward"), leftturn = label_of("leftturn"), stop = label_of("stop"),
+              bike = label_of("bike"), rail = label_of("rail"), ped = label_of("ped");
+  const std::vector<WorldMarking> world = {
+      {1, forward, 30.0, 0.0, 0.0},  {2, stop, 60.0, 1.0, 0.0},  {3, bike, 90.0, -2.0, 0.0},
+      {4, rail, 120.0, 0.0, 0.0},    {5, ped, 150.0, 8.0, 0.0},   {6, stop, 200.0, 0.0, 0.0},
+  };
+  std::vector<VisibleMarking> visible;
+  MarkingScore paired;
+  auto show = [&](std::uint32_t id, Label label, FrameIndex frame, std::optional<Label> detected) {
+    visible.push_back({frame, id, label, {}});
+    paired.paired_label.push_back(detected);
+  };
+  // 1: 20..5 m ahead, three of four detections right: named right. Seen
+  // again on the second visit (its own pass), right twice.
+  show(1, forward, 10, forward);
+  show(1, forward, 15, leftturn);
+  show(1, forward, 20, forward);
+  show(1, forward, 25, forward);
+  // 2: two against two, the wrong label voted for first: it wins the tie.
+  show(2, stop, 40, leftturn);
+  show(2, stop, 42, stop);
+  show(2, stop, 44, stop);
+  show(2, stop, 46, leftturn);
+  // 3: a single detection makes no landmark; the first row lies 25 m ahead,
+  // out of range, but the pass counts by its second.
+  show(3, bike, 65, std::nullopt);
+  show(3, bike, 80, bike);
+  // 4: three labels, none with half the votes.
+  show(4, rail, 110, rail);
+  show(4, rail, 112, stop);
+  show(4, rail, 114, ped);
+  // 5: 8 m to the side, never in range: not counted, though detected.
+  show(5, ped, 140, ped);
+  show(5, ped, 141, ped);
+  // 6: in range, never detected; 4 s apart is still one pass.
+  show(6, stop, 185, std::nullopt);
+  show(6, stop, 225, std::nullopt);
+  // 7: not in the world: not judged.
+  show(7, stop, 190, stop);
+  show(1, forward, 410, forward);
+  show(1, forward, 420, forward);
+
+  const PassScore score = score_passes(world, route, times, visible, paired);
+  REQUIRE(score.passes.size() == 6);
+  CHECK(score.count(PassOutcome::NamedRight) == 2);
+  CHECK(score.count(PassOutcome::NamedWrong) == 1);
+  CHECK(score.count(PassOutcome::NoMajority) == 1);
+  CHECK(score.count(PassOutcome::DetectedOnce) == 1);
+  CHECK(score.count(PassOutcome::NotDetected) == 1);
+  CHECK(score.passes_of_class[forward] == 2);
+  CHECK(score.named_right_of_class[forward] == 2);
+  CHECK(score.passes_of_class[ped] == 0);
+
+  const MarkingPass& first = score.passes[0];
+  CHECK(first.id == 1);
+  CHECK(first.first_frame == 10);
+  CHECK(first.last_frame == 25);
+  CHECK(first.detections == 4);
+  const MarkingPass& tie = score.passes[1];
+  CHECK(tie.outcome == PassOutcome::NamedWrong);
+  CHECK(tie.named == leftturn);
+  CHECK(score.passes[2].outcome == PassOutcome::DetectedOnce);
+  CHECK(score.passes[3].outcome == PassOutcome::NoMajority);
+  const MarkingPass& unseen = score.passes[4];
+  CHECK(unseen.outcome == PassOutcome::NotDetected);
+  CHECK(unseen.first_frame == 185);
+  CHECK(unseen.last_frame == 225);
+  CHECK(score.passes[5].first_frame == 410);
+  CHECK(score.passes[5].outcome == PassOutcome::NamedRight);
+}
+
+TEST_CASE("score_markings records the label paired with each visible marking") {
+  const fs::path dir = fresh_dir("paired");
+  std::vector<VisibleMarking> visible;
+  std::vector<DetectionRecord> detections;
+  std::string error;
+  REQUIRE(load_visible(dir / "visible.csv", fixture::kFrames, visible, error));
+  REQUIRE(load_detections(dir / "ecu-detections.csv", fixture::kFrames, detections, error));
+  const MarkingScore m = score_markings(visible, detections);
+  REQUIRE(m.paired_label.size() == visible.size());
+  CHECK(m.paired_label[0] == label_of("stop"));
+  CHECK(m.paired_label[1] == label_of("leftturn"));
+  CHECK(m.paired_label[2] == label_of("crosswalk"));
+  CHECK_FALSE(m.paired_label[3].has_value());
 }
 
 TEST_CASE("malformed inputs are reported with file and line") {
