@@ -66,6 +66,15 @@ figures:
                      IoU is at least 0.3 (one to one); detection recall and
                      precision (any label), classification accuracy (right
                      label among matched), per class
+  markings driven    each pass of the car by a marking (the frames showing
+  past               it, gaps under 5 s) whose centre came 3..20 m ahead and
+                     within 6 m to a side, named as the ECU's landmark vote
+                     would name it from the detections matched to it (and,
+                     in frames where a vehicle hides it, those within 1.5 m
+                     of it on the ground): right, wrong, no label with half
+                     the votes, detected once (no landmark), not detected;
+                     a marking in view at the drive's first or last frame is
+                     not judged
 
 Exit status: 0 on success, 2 on bad input or options (FILE:LINE: what).
 )";
@@ -178,11 +187,13 @@ std::string class_name(Label label) {
 
 void print_passes(const PassScore& p) {
   const std::size_t total = p.passes.size();
+  const PassRegion region;
   std::printf("\nMarkings driven past (a pass: the frames showing a marking, gaps under %.0f s; counted\n"
-              "when its centre came 3..20 m ahead and within 6 m to a side; named by the ECU's\n"
-              "landmark vote over the detections paired with it)\n",
-              kPassGap_s);
-  std::printf("  %-34s %zu\n", "passes", total);
+              "when its centre came %.0f..%.0f m ahead and within %.0f m to a side; named by the ECU's\n"
+              "landmark vote over the detections matched to it, or within %.1f m while hidden)\n",
+              kPassGap_s, region.ahead_min_m, region.ahead_max_m, region.side_m, kSameMarking_m);
+  std::printf("  %-34s %zu (and %zu in view at the drive's start or end, not judged)\n", "passes", total,
+              p.cut_by_drive_ends);
   std::printf("  %-34s %s (%zu)\n", "named right", percent_text(p.count(PassOutcome::NamedRight), total).c_str(),
               p.count(PassOutcome::NamedRight));
   std::printf("  %-34s %zu\n", "named wrong", p.count(PassOutcome::NamedWrong));
@@ -298,7 +309,8 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
   }
   if (passes != nullptr) {
     const PassScore& p = *passes;
-    std::fprintf(f, ",\"passes\":{\"count\":%zu", p.passes.size());
+    std::fprintf(f, ",\"passes\":{\"count\":%zu,\"cut_by_drive_ends\":%zu", p.passes.size(),
+                 p.cut_by_drive_ends);
     for (std::size_t i = 0; i < kPassOutcomeCount; ++i)
       std::fprintf(f, ",\"%s\":%zu", outcome_name(static_cast<PassOutcome>(i)), p.outcomes[i]);
     std::fprintf(f, ",\"per_class\":{");
@@ -376,7 +388,7 @@ int main(int argc, char** argv) {
   }
   const MarkingScore markings = have_markings ? score_markings(visible, detections) : MarkingScore{};
   const PassScore passes =
-      have_markings ? score_passes(world, route, times, visible, markings) : PassScore{};
+      have_markings ? score_passes(world, route, times, visible, detections, markings) : PassScore{};
 
   // --- table ---
   const double length_m = route_length_m(route);

@@ -86,10 +86,14 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
 
 namespace {
 
-bool in_region(const WorldMarking& m, const Pose2& car, const PassRegion& region) {
+// The marking's centre in the car's frame: metres ahead, metres to the left.
+std::array<double, 2> in_car_frame(const WorldMarking& m, const Pose2& car) {
   const double dx = m.x - car.x, dy = m.y - car.y;
-  const double ahead = std::cos(car.yaw) * dx + std::sin(car.yaw) * dy;
-  const double side = -std::sin(car.yaw) * dx + std::cos(car.yaw) * dy;
+  return {std::cos(car.yaw) * dx + std::sin(car.yaw) * dy, -std::sin(car.yaw) * dx + std::cos(car.yaw) * dy};
+}
+
+bool in_region(const WorldMarking& m, const Pose2& car, const PassRegion& region) {
+  const auto [ahead, side] = in_car_frame(m, car);
   return ahead >= region.ahead_min_m && ahead <= region.ahead_max_m && std::abs(side) <= region.side_m;
 }
 
@@ -123,7 +127,8 @@ void vote(const std::vector<Label>& labels, MarkingPass& pass) {
 
 PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
                        const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
-                       const MarkingScore& markings, const PassRegion& region) {
+                       const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
+                       const PassRegion& region) {
   std::unordered_map<std::uint32_t, std::size_t> world_index;
   for (std::size_t i = 0; i < world.size(); ++i) world_index.emplace(world[i].id, i);
 
@@ -136,7 +141,16 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
   auto time_of = [&](std::size_t row) {
     return truth[row].frame < frame_times.size() ? frame_times[truth[row].frame] : 0.0;
   };
+  // Unpaired detections on the ground where a marking hidden in visible.csv
+  // lies (a vehicle in front of its centre, the paint still showing) vote
+  // for it too, as they would in the ECU's track.
+  std::vector<bool> taken(detections.size(), false);
+  for (std::size_t d = 0; d < detections.size() && d < markings.detection_paired.size(); ++d)
+    taken[d] = markings.detection_paired[d];
+  auto by_frame = [](const DetectionRecord& d, FrameIndex f) { return d.frame < f; };
+
   PassScore score;
+  std::vector<std::pair<FrameIndex, Label>> votes;
   std::vector<Label> labels;
   for (std::size_t begin = 0; begin < rows.size();) {
     const VisibleMarking& first = truth[rows[begin]];
@@ -145,30 +159,51 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
     while (end < rows.size() && truth[rows[end]].id == first.id &&
            time_of(rows[end]) - time_of(rows[end - 1]) <= kPassGap_s)
       ++end;
-    if (found != world_index.end()) {
-      const WorldMarking& marking = world[found->second];
-      bool in_range = false;
-      labels.clear();
-      for (std::size_t i = begin; i < end; ++i) {
-        const std::size_t row = rows[i];
-        if (truth[row].frame < route.size() && in_region(marking, route[truth[row].frame], region))
-          in_range = true;
-        if (row < markings.paired_label.size() && markings.paired_label[row])
-          labels.push_back(*markings.paired_label[row]);
-      }
-      if (in_range) {
-        MarkingPass pass;
-        pass.id = first.id;
-        pass.label = first.label;
-        pass.first_frame = first.frame;
-        pass.last_frame = truth[rows[end - 1]].frame;
-        vote(labels, pass);
-        score.passes.push_back(pass);
-        ++score.outcomes[static_cast<std::size_t>(pass.outcome)];
-        if (pass.label < score.passes_of_class.size()) {
-          ++score.passes_of_class[pass.label];
-          if (pass.outcome == PassOutcome::NamedRight) ++score.named_right_of_class[pass.label];
+    if (found == world_index.end()) {
+      begin = end;
+      continue;
+    }
+    const WorldMarking& marking = world[found->second];
+    bool in_range = false;
+    votes.clear();
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::size_t row = rows[i];
+      const FrameIndex frame = truth[row].frame;
+      if (frame < route.size() && in_region(marking, route[frame], region)) in_range = true;
+      if (row < markings.paired_label.size() && markings.paired_label[row])
+        votes.emplace_back(frame, *markings.paired_label[row]);
+      // The frames up to the next visible one, where the marking is hidden.
+      const FrameIndex hidden_end = i + 1 < end ? truth[rows[i + 1]].frame : frame + 1;
+      for (FrameIndex hidden = frame + 1; hidden < hidden_end && hidden < route.size(); ++hidden) {
+        const auto [ahead, side] = in_car_frame(marking, route[hidden]);
+        auto d = std::lower_bound(detections.begin(), detections.end(), hidden, by_frame);
+        for (; d != detections.end() && d->frame == hidden; ++d) {
+          const auto index = static_cast<std::size_t>(d - detections.begin());
+          if (taken[index] || std::hypot(d->ground_x - ahead, d->ground_y - side) > kSameMarking_m) continue;
+          taken[index] = true;
+          votes.emplace_back(hidden, d->label);
         }
+      }
+    }
+    const FrameIndex pass_first = first.frame, pass_last = truth[rows[end - 1]].frame;
+    const bool cut = pass_first == 0 || pass_last + 1 >= route.size();
+    if (in_range && cut) ++score.cut_by_drive_ends;
+    if (in_range && !cut) {
+      std::stable_sort(votes.begin(), votes.end(),
+                       [](const auto& a, const auto& b) { return a.first < b.first; });
+      labels.clear();
+      for (const auto& v : votes) labels.push_back(v.second);
+      MarkingPass pass;
+      pass.id = first.id;
+      pass.label = first.label;
+      pass.first_frame = pass_first;
+      pass.last_frame = pass_last;
+      vote(labels, pass);
+      score.passes.push_back(pass);
+      ++score.outcomes[static_cast<std::size_t>(pass.outcome)];
+      if (pass.label < score.passes_of_class.size()) {
+        ++score.passes_of_class[pass.label];
+        if (pass.outcome == PassOutcome::NamedRight) ++score.named_right_of_class[pass.label];
       }
     }
     begin = end;
@@ -207,6 +242,7 @@ MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
   score.truth = truth.size();
   score.detections = detections.size();
   score.paired_label.assign(truth.size(), std::nullopt);
+  score.detection_paired.assign(detections.size(), false);
   for (const VisibleMarking& t : truth) ++score.per_class[t.label].truth;
   for (const DetectionRecord& d : detections) ++score.per_class[d.label].detections;
 
@@ -250,6 +286,7 @@ MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
       ++score.per_class[detected].detections_matched;
       ++score.confusion[truth_label][detected];
       score.paired_label[c.truth] = detected;
+      score.detection_paired[c.detection] = true;
       if (truth_label == detected) {
         ++score.right_label;
         ++score.per_class[truth_label].truth_right_label;

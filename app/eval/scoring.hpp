@@ -78,6 +78,8 @@ struct MarkingScore {
       confusion{};
   // Per row of the visible markings: the label of the detection paired with it.
   std::vector<std::optional<Label>> paired_label;
+  // Per detection: paired with a visible marking.
+  std::vector<bool> detection_paired;
 };
 
 // A detection and a visible marking of the same frame match when the centre
@@ -92,8 +94,13 @@ MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
 // at least 10 s later; a vehicle in front hides a marking for less).
 inline constexpr double kPassGap_s = 5.0;
 
+// The ECU's landmark tracker joins a detection to a track within this
+// distance on the ground (engine TrackerConfig's default).
+inline constexpr double kSameMarking_m = 1.5;
+
 // A pass counts when the marking's centre lay in the detector's default
-// region in one of its frames, in the car's frame (frames.csv's pose).
+// region in one of its frames, in the car's frame (frames.csv's pose), and
+// the marking was out of view at the drive's first and last frames.
 struct PassRegion {
   double ahead_min_m = 3.0;
   double ahead_max_m = 20.0;
@@ -118,6 +125,9 @@ struct MarkingPass {
 
 struct PassScore {
   std::vector<MarkingPass> passes;  // in range, by first frame
+  // In range, but in view at the drive's first or last frame: not driven
+  // past within the drive, so not judged.
+  std::size_t cut_by_drive_ends = 0;
   std::array<std::size_t, kPassOutcomeCount> outcomes{};
   std::array<std::size_t, perception::kMarkingClassCount> passes_of_class{};
   std::array<std::size_t, perception::kMarkingClassCount> named_right_of_class{};
@@ -125,12 +135,15 @@ struct PassScore {
 };
 
 // Judges every marking the car drove past by the landmark vote on the
-// detections `markings` paired with it. `route` and `frame_times` are
-// frames.csv's; `truth` the visible markings `markings` was scored on.
-// A visible marking missing from `world` is not judged.
+// detections `markings` paired with it, and on the unpaired ones within
+// kSameMarking_m of it on the ground in the frames of the pass that
+// visible.csv leaves it out of (hidden behind a vehicle). `route` and
+// `frame_times` are frames.csv's; `truth` and `detections` what `markings`
+// was scored on. A visible marking missing from `world` is not judged.
 PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
                        const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
-                       const MarkingScore& markings, const PassRegion& region = {});
+                       const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
+                       const PassRegion& region = {});
 
 double intersection_over_union(const Quad& a, const Quad& b);
 bool centre_inside(const Quad& detection, const Quad& truth);

@@ -21,13 +21,16 @@ for pattern in "correct / wrong +1 / 1" "revisited 100 m stretches detected +1 o
     "CAN stamp - time of QueryFrame +1605.0 / 1704.0 / 1704.0 ms" "CAN stamp - last frame before it +5.0 / 6.0 / 6.0 ms" \
     "LoopDetection +16 accepted, 2 rejected \(CRC 1, alive counter 1" "2 complete, 1 incomplete" \
     "detection recall \(any label\) +75.0 %" "detection precision \(any label\) +60.0 %" \
-    "classification accuracy +66.7 %" "longest loop time \(any cycle\) +12.50 ms"; do
+    "classification accuracy +66.7 %" "longest loop time \(any cycle\) +12.50 ms" \
+    "^Markings driven past" "passes +0 \(and 0 in view"; do
   grep -qE -- "$pattern" "$work/run.txt" || { echo "FAIL table lacks '$pattern'"; failures=$((failures + 1)); }
 done
 for f in loops.svg loops.png figures.json; do
   [ -s "$run/$f" ] || { echo "FAIL $f not written"; failures=$((failures + 1)); }
 done
 grep -q '"correct":1,"wrong":1' "$run/figures.json" || { echo "FAIL json lacks the loop counts"; failures=$((failures + 1)); }
+grep -q '"passes":{"count":0,"cut_by_drive_ends":0,"named_right":0' "$run/figures.json" ||
+  { echo "FAIL json lacks the passes"; failures=$((failures + 1)); }
 if command -v python3 >/dev/null; then
   python3 -c 'import json,sys; json.load(open(sys.argv[1]))' "$run/figures.json" ||
     { echo "FAIL figures.json is not JSON"; failures=$((failures + 1)); }

@@ -218,7 +218,9 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   const std::vector<WorldMarking> world = {
       {1, forward, 30.0, 0.0, 0.0},  {2, stop, 60.0, 1.0, 0.0},  {3, bike, 90.0, -2.0, 0.0},
       {4, rail, 120.0, 0.0, 0.0},    {5, ped, 150.0, 8.0, 0.0},   {6, stop, 200.0, 0.0, 0.0},
+      {8, bike, 300.0, 0.0, 0.0},    {9, stop, 15.0, 0.0, 0.0},   {10, stop, 410.0, 0.0, 0.0},
   };
+  // The rows of each marking in frame order, as in visible.csv.
   std::vector<VisibleMarking> visible;
   MarkingScore paired;
   auto show = [&](std::uint32_t id, Label label, FrameIndex frame, std::optional<Label> detected) {
@@ -236,10 +238,27 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   show(2, stop, 42, stop);
   show(2, stop, 44, stop);
   show(2, stop, 46, leftturn);
-  // 3: a single detection makes no landmark; the first row lies 25 m ahead,
-  // out of range, but the pass counts by its second.
+  // 3: the first row lies 25 m ahead, out of range, but the pass counts by
+  // its second. Hidden in the frames between, it is detected once where it
+  // lies (and a detection 5 m off is not its).
   show(3, bike, 65, std::nullopt);
   show(3, bike, 80, bike);
+  std::vector<DetectionRecord> detections(3);
+  detections[0].frame = 70;  // the car at x = 70: the marking 20 m ahead, 2 m right
+  detections[0].label = bike;
+  detections[0].ground_x = 19.5;
+  detections[0].ground_y = -2.4;
+  detections[1].frame = 72;
+  detections[1].label = ped;
+  detections[1].ground_x = 13.0;
+  detections[1].ground_y = 3.0;
+  detections[2].frame = 80;  // the detection paired with the visible row
+  detections[2].label = bike;
+  detections[2].ground_x = 10.0;
+  detections[2].ground_y = -2.0;
+  paired.detection_paired = {false, false, true};
+  // 8: a single detection makes no landmark.
+  show(8, bike, 290, bike);
   // 4: three labels, none with half the votes.
   show(4, rail, 110, rail);
   show(4, rail, 112, stop);
@@ -254,10 +273,15 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   show(7, stop, 190, stop);
   show(1, forward, 410, forward);
   show(1, forward, 420, forward);
+  // 9 and 10: in view at the drive's first and last frames, not judged.
+  show(9, stop, 0, stop);
+  show(9, stop, 1, stop);
+  show(10, stop, 799, std::nullopt);
 
-  const PassScore score = score_passes(world, route, times, visible, paired);
-  REQUIRE(score.passes.size() == 6);
-  CHECK(score.count(PassOutcome::NamedRight) == 2);
+  const PassScore score = score_passes(world, route, times, visible, detections, paired);
+  REQUIRE(score.passes.size() == 7);
+  CHECK(score.cut_by_drive_ends == 2);
+  CHECK(score.count(PassOutcome::NamedRight) == 3);
   CHECK(score.count(PassOutcome::NamedWrong) == 1);
   CHECK(score.count(PassOutcome::NoMajority) == 1);
   CHECK(score.count(PassOutcome::DetectedOnce) == 1);
@@ -274,14 +298,19 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   const MarkingPass& tie = score.passes[1];
   CHECK(tie.outcome == PassOutcome::NamedWrong);
   CHECK(tie.named == leftturn);
-  CHECK(score.passes[2].outcome == PassOutcome::DetectedOnce);
+  const MarkingPass& hidden = score.passes[2];
+  CHECK(hidden.id == 3);
+  CHECK(hidden.detections == 2);
+  CHECK(hidden.outcome == PassOutcome::NamedRight);
   CHECK(score.passes[3].outcome == PassOutcome::NoMajority);
   const MarkingPass& unseen = score.passes[4];
   CHECK(unseen.outcome == PassOutcome::NotDetected);
   CHECK(unseen.first_frame == 185);
   CHECK(unseen.last_frame == 225);
-  CHECK(score.passes[5].first_frame == 410);
-  CHECK(score.passes[5].outcome == PassOutcome::NamedRight);
+  CHECK(score.passes[5].id == 8);
+  CHECK(score.passes[5].outcome == PassOutcome::DetectedOnce);
+  CHECK(score.passes[6].first_frame == 410);
+  CHECK(score.passes[6].outcome == PassOutcome::NamedRight);
 }
 
 TEST_CASE("score_markings records the label paired with each visible marking") {
