@@ -129,6 +129,16 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
                        const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
                        const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
                        const PassRegion& region) {
+  PassScore score;
+  // The readers guarantee frames inside the route; anything else is not judged.
+  if (frame_times.size() != route.size() || markings.paired_label.size() != truth.size() ||
+      markings.detection_paired.size() != detections.size())
+    return score;
+  for (const VisibleMarking& t : truth)
+    if (t.frame >= route.size()) return score;
+  for (const DetectionRecord& d : detections)
+    if (d.frame >= route.size()) return score;
+
   std::unordered_map<std::uint32_t, std::size_t> world_index;
   for (std::size_t i = 0; i < world.size(); ++i) world_index.emplace(world[i].id, i);
 
@@ -138,18 +148,13 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
   std::stable_sort(rows.begin(), rows.end(),
                    [&](std::size_t a, std::size_t b) { return truth[a].id < truth[b].id; });
 
-  auto time_of = [&](std::size_t row) {
-    return truth[row].frame < frame_times.size() ? frame_times[truth[row].frame] : 0.0;
-  };
-  // Unpaired detections on the ground where a marking hidden in visible.csv
-  // lies (a vehicle in front of its centre, the paint still showing) vote
-  // for it too, as they would in the ECU's track.
-  std::vector<bool> taken(detections.size(), false);
-  for (std::size_t d = 0; d < detections.size() && d < markings.detection_paired.size(); ++d)
-    taken[d] = markings.detection_paired[d];
+  auto time_of = [&](std::size_t row) { return frame_times[truth[row].frame]; };
+  // Unpaired detections on the ground where a marking lies, in the frames
+  // visible.csv leaves it out of, vote for it too, as they would in the
+  // ECU's track.
+  std::vector<bool> taken = markings.detection_paired;
   auto by_frame = [](const DetectionRecord& d, FrameIndex f) { return d.frame < f; };
 
-  PassScore score;
   std::vector<std::pair<FrameIndex, Label>> votes;
   std::vector<Label> labels;
   for (std::size_t begin = 0; begin < rows.size();) {
@@ -164,47 +169,51 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
       continue;
     }
     const WorldMarking& marking = world[found->second];
+    const FrameIndex pass_first = first.frame, pass_last = truth[rows[end - 1]].frame;
     bool in_range = false;
+    for (std::size_t i = begin; i < end; ++i)
+      if (in_region(marking, route[truth[rows[i]].frame], region)) in_range = true;
+    if (in_range && (pass_first == 0 || pass_last + 1 >= route.size())) ++score.cut_by_drive_ends;
+    if (!in_range || pass_first == 0 || pass_last + 1 >= route.size()) {
+      begin = end;
+      continue;
+    }
+
     votes.clear();
-    for (std::size_t i = begin; i < end; ++i) {
-      const std::size_t row = rows[i];
-      const FrameIndex frame = truth[row].frame;
-      if (frame < route.size() && in_region(marking, route[frame], region)) in_range = true;
-      if (row < markings.paired_label.size() && markings.paired_label[row])
-        votes.emplace_back(frame, *markings.paired_label[row]);
-      // The frames up to the next visible one, where the marking is hidden.
-      const FrameIndex hidden_end = i + 1 < end ? truth[rows[i + 1]].frame : frame + 1;
-      for (FrameIndex hidden = frame + 1; hidden < hidden_end && hidden < route.size(); ++hidden) {
-        const auto [ahead, side] = in_car_frame(marking, route[hidden]);
-        auto d = std::lower_bound(detections.begin(), detections.end(), hidden, by_frame);
-        for (; d != detections.end() && d->frame == hidden; ++d) {
-          const auto index = static_cast<std::size_t>(d - detections.begin());
-          if (taken[index] || std::hypot(d->ground_x - ahead, d->ground_y - side) > kSameMarking_m) continue;
-          taken[index] = true;
-          votes.emplace_back(hidden, d->label);
-        }
+    for (std::size_t i = begin; i < end; ++i)
+      if (const auto& label = markings.paired_label[rows[i]]) votes.emplace_back(truth[rows[i]].frame, *label);
+    // The frames around and between the visible ones, where a vehicle hides
+    // the marking or the image cuts it.
+    FrameIndex from = pass_first, to = pass_last;
+    while (from > 0 && frame_times[pass_first] - frame_times[from - 1] <= kPassMargin_s) --from;
+    while (to + 1 < route.size() && frame_times[to + 1] - frame_times[pass_last] <= kPassMargin_s) ++to;
+    std::size_t next_visible = begin;
+    for (FrameIndex frame = from; frame <= to; ++frame) {
+      while (next_visible < end && truth[rows[next_visible]].frame < frame) ++next_visible;
+      if (next_visible < end && truth[rows[next_visible]].frame == frame) continue;
+      const auto [ahead, side] = in_car_frame(marking, route[frame]);
+      auto d = std::lower_bound(detections.begin(), detections.end(), frame, by_frame);
+      for (; d != detections.end() && d->frame == frame; ++d) {
+        const auto index = static_cast<std::size_t>(d - detections.begin());
+        if (taken[index] || std::hypot(d->ground_x - ahead, d->ground_y - side) > kSameMarking_m) continue;
+        taken[index] = true;
+        votes.emplace_back(frame, d->label);
       }
     }
-    const FrameIndex pass_first = first.frame, pass_last = truth[rows[end - 1]].frame;
-    const bool cut = pass_first == 0 || pass_last + 1 >= route.size();
-    if (in_range && cut) ++score.cut_by_drive_ends;
-    if (in_range && !cut) {
-      std::stable_sort(votes.begin(), votes.end(),
-                       [](const auto& a, const auto& b) { return a.first < b.first; });
-      labels.clear();
-      for (const auto& v : votes) labels.push_back(v.second);
-      MarkingPass pass;
-      pass.id = first.id;
-      pass.label = first.label;
-      pass.first_frame = pass_first;
-      pass.last_frame = pass_last;
-      vote(labels, pass);
-      score.passes.push_back(pass);
-      ++score.outcomes[static_cast<std::size_t>(pass.outcome)];
-      if (pass.label < score.passes_of_class.size()) {
-        ++score.passes_of_class[pass.label];
-        if (pass.outcome == PassOutcome::NamedRight) ++score.named_right_of_class[pass.label];
-      }
+    std::stable_sort(votes.begin(), votes.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    labels.clear();
+    for (const auto& v : votes) labels.push_back(v.second);
+    MarkingPass pass;
+    pass.id = first.id;
+    pass.label = first.label;
+    pass.first_frame = pass_first;
+    pass.last_frame = pass_last;
+    vote(labels, pass);
+    score.passes.push_back(pass);
+    ++score.outcomes[static_cast<std::size_t>(pass.outcome)];
+    if (pass.label < score.passes_of_class.size()) {
+      ++score.passes_of_class[pass.label];
+      if (pass.outcome == PassOutcome::NamedRight) ++score.named_right_of_class[pass.label];
     }
     begin = end;
   }

@@ -93,6 +93,10 @@ MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
 // it, none more than kPassGap_s after the one before (a revisit comes back
 // at least 10 s later; a vehicle in front hides a marking for less).
 inline constexpr double kPassGap_s = 5.0;
+// visible.csv leaves a marking out while a vehicle hides its centre or the
+// image cuts it; detections are sought in those frames of a pass, and up to
+// this long before and after it.
+inline constexpr double kPassMargin_s = 1.0;
 
 // The ECU's landmark tracker joins a detection to a track within this
 // distance on the ground (engine TrackerConfig's default).
@@ -137,9 +141,11 @@ struct PassScore {
 // Judges every marking the car drove past by the landmark vote on the
 // detections `markings` paired with it, and on the unpaired ones within
 // kSameMarking_m of it on the ground in the frames of the pass that
-// visible.csv leaves it out of (hidden behind a vehicle). `route` and
-// `frame_times` are frames.csv's; `truth` and `detections` what `markings`
-// was scored on. A visible marking missing from `world` is not judged.
+// visible.csv leaves it out of, and up to kPassMargin_s around the pass.
+// `route` and `frame_times` are frames.csv's; `truth` and `detections`
+// (sorted by frame) what `markings` was scored on. A visible marking missing
+// from `world` is not judged; inputs that do not fit one another give an
+// empty score.
 PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
                        const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
                        const std::vector<DetectionRecord>& detections, const MarkingScore& markings,

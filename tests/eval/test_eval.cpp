@@ -219,6 +219,7 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
       {1, forward, 30.0, 0.0, 0.0},  {2, stop, 60.0, 1.0, 0.0},  {3, bike, 90.0, -2.0, 0.0},
       {4, rail, 120.0, 0.0, 0.0},    {5, ped, 150.0, 8.0, 0.0},   {6, stop, 200.0, 0.0, 0.0},
       {8, bike, 300.0, 0.0, 0.0},    {9, stop, 15.0, 0.0, 0.0},   {10, stop, 410.0, 0.0, 0.0},
+      {11, forward, 350.0, 0.0, 0.0},
   };
   // The rows of each marking in frame order, as in visible.csv.
   std::vector<VisibleMarking> visible;
@@ -243,7 +244,7 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   // lies (and a detection 5 m off is not its).
   show(3, bike, 65, std::nullopt);
   show(3, bike, 80, bike);
-  std::vector<DetectionRecord> detections(3);
+  std::vector<DetectionRecord> detections(4);
   detections[0].frame = 70;  // the car at x = 70: the marking 20 m ahead, 2 m right
   detections[0].label = bike;
   detections[0].ground_x = 19.5;
@@ -256,9 +257,16 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   detections[2].label = bike;
   detections[2].ground_x = 10.0;
   detections[2].ground_y = -2.0;
-  paired.detection_paired = {false, false, true};
+  // 11: visible in one frame; detected again half a second later, where
+  // visible.csv no longer lists it (the image cuts it): named right.
+  detections[3].frame = 345;
+  detections[3].label = forward;
+  detections[3].ground_x = 5.2;
+  detections[3].ground_y = 0.3;
+  paired.detection_paired = {false, false, true, false};
   // 8: a single detection makes no landmark.
   show(8, bike, 290, bike);
+  show(11, forward, 340, forward);
   // 4: three labels, none with half the votes.
   show(4, rail, 110, rail);
   show(4, rail, 112, stop);
@@ -279,15 +287,15 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   show(10, stop, 799, std::nullopt);
 
   const PassScore score = score_passes(world, route, times, visible, detections, paired);
-  REQUIRE(score.passes.size() == 7);
+  REQUIRE(score.passes.size() == 8);
   CHECK(score.cut_by_drive_ends == 2);
-  CHECK(score.count(PassOutcome::NamedRight) == 3);
+  CHECK(score.count(PassOutcome::NamedRight) == 4);
   CHECK(score.count(PassOutcome::NamedWrong) == 1);
   CHECK(score.count(PassOutcome::NoMajority) == 1);
   CHECK(score.count(PassOutcome::DetectedOnce) == 1);
   CHECK(score.count(PassOutcome::NotDetected) == 1);
-  CHECK(score.passes_of_class[forward] == 2);
-  CHECK(score.named_right_of_class[forward] == 2);
+  CHECK(score.passes_of_class[forward] == 3);
+  CHECK(score.named_right_of_class[forward] == 3);
   CHECK(score.passes_of_class[ped] == 0);
 
   const MarkingPass& first = score.passes[0];
@@ -309,8 +317,12 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   CHECK(unseen.last_frame == 225);
   CHECK(score.passes[5].id == 8);
   CHECK(score.passes[5].outcome == PassOutcome::DetectedOnce);
-  CHECK(score.passes[6].first_frame == 410);
-  CHECK(score.passes[6].outcome == PassOutcome::NamedRight);
+  const MarkingPass& cut_by_image = score.passes[6];
+  CHECK(cut_by_image.id == 11);
+  CHECK(cut_by_image.detections == 2);
+  CHECK(cut_by_image.outcome == PassOutcome::NamedRight);
+  CHECK(score.passes[7].first_frame == 410);
+  CHECK(score.passes[7].outcome == PassOutcome::NamedRight);
 }
 
 TEST_CASE("score_markings records the label paired with each visible marking") {
