@@ -70,8 +70,9 @@ figures:
   past               it, gaps under 5 s) whose centre came 3..20 m ahead and
                      within 6 m to a side, named as the ECU's landmark vote
                      would name it from the detections matched to it (and,
-                     in frames where a vehicle hides it, those within 1.5 m
-                     of it on the ground): right, wrong, no label with half
+                     in frames where a vehicle hides it or the image cuts it,
+                     up to 1 s around the pass, those within 1.5 m of it on
+                     the ground): right, wrong, no label with half
                      the votes, detected once (no landmark), not detected;
                      a marking in view at the drive's first or last frame is
                      not judged
@@ -190,7 +191,7 @@ void print_passes(const PassScore& p) {
   const PassRegion region;
   std::printf("\nMarkings driven past (a pass: the frames showing a marking, gaps under %.0f s; counted\n"
               "when its centre came %.0f..%.0f m ahead and within %.0f m to a side; named by the ECU's\n"
-              "landmark vote over the detections matched to it, or within %.1f m while hidden)\n",
+              "landmark vote over the detections matched to it, or within %.1f m where not shown)\n",
               kPassGap_s, region.ahead_min_m, region.ahead_max_m, region.side_m, kSameMarking_m);
   std::printf("  %-34s %zu (and %zu in view at the drive's start or end, not judged)\n", "passes", total,
               p.cut_by_drive_ends);
