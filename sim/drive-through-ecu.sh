@@ -8,9 +8,9 @@
 #                            [-- extra markloop-sim drive options]
 #
 # Outputs in DIR: the sim's files, ecu-can.log (everything the ECU sent),
-# ecu-detections.csv, ecu-summary.json (timings, counters), eval.json and
-# loops.svg/loops.png (markloop-eval). frames.y4m (about 0.65 MB per frame)
-# is deleted after the ECU ran unless --keep-frames.
+# ecu-detections.csv, ecu-landmarks.csv, ecu-summary.json (timings, counters),
+# eval.json and loops.svg/loops.png (markloop-eval). frames.y4m (about 0.65 MB
+# per frame) is deleted after the ECU ran unless --keep-frames.
 set -euo pipefail
 
 bin=build/host
@@ -60,7 +60,8 @@ echo "drive-through-ecu: simulating '$name' (seed $seed) into $out"
 echo "drive-through-ecu: markloop (file mode${realtime:+, real time})"
 "$bin/app/ecu/markloop" --camera-file "$out/frames.y4m" --can-in "$out/odometry.log" \
   --calibration "$out/camera.yaml" --can-out "$out/ecu-can.log" \
-  --detections-out "$out/ecu-detections.csv" --summary "$out/ecu-summary.json" \
+  --detections-out "$out/ecu-detections.csv" --landmarks-out "$out/ecu-landmarks.csv" \
+  --summary "$out/ecu-summary.json" \
   --set realtime.mlockall=false "${map_args[@]}" "${realtime[@]}"
 [ "$keep_frames" = 1 ] || rm -f "$out/frames.y4m"
 echo "drive-through-ecu: evaluation"

@@ -166,6 +166,7 @@ const std::vector<Key>& keys() {
       text_key("map.file", &EcuConfig::map_file),
       bool_key("map.save_on_exit", [](EcuConfig& c) -> bool& { return c.save_map_on_exit; }),
       text_key("detections_out", &EcuConfig::detections_out),
+      text_key("landmarks_out", &EcuConfig::landmarks_out),
       integer_key("status.period_ms", 10, 10000,
                   [](EcuConfig& c) -> unsigned& { return c.status_period_ms; }),
       integer_key("odometry.timeout_ms", 20, 10000,

@@ -61,6 +61,24 @@ class DetectionsCsv {
   std::array<char, 1 << 16> buffer_{};
 };
 
+// The landmarks the engine holds, oldest first, for markloop-eval to judge
+// against the simulator's markings. Once, after the recording.
+bool write_landmarks_csv(const std::string& path, const SequenceDatabase& database) {
+  std::FILE* file = std::fopen(path.c_str(), "w");
+  if (file == nullptr) return false;
+  std::fputs("label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose\n", file);
+  for (LandmarkId id = database.first_landmark_id(); id != database.next_landmark_id(); ++id) {
+    const Landmark* l = database.landmark(id);
+    if (l == nullptr) continue;
+    const std::string_view name = perception::marking_class_name(l->label);
+    std::fprintf(file, "%.*s,%u,%u,%u,%.3f,%.3f,%.3f,%.3f,%.6f,%d\n", static_cast<int>(name.size()), name.data(),
+                 unsigned{l->observations}, l->first_frame, l->last_frame, double(l->x), double(l->y),
+                 double(l->car_x), double(l->car_y), double(l->car_yaw), l->has_car_pose ? 1 : 0);
+  }
+  const bool ok = std::ferror(file) == 0;
+  return std::fclose(file) == 0 && ok;
+}
+
 nanoseconds frame_time(std::uint64_t k, const io::Y4mFormat& format) {
   // Exact in integers: k * den / num seconds.
   const long double seconds =
@@ -211,6 +229,10 @@ int run_file_mode(const RunOptions& options) {
   if (stop_signal != 0 && !quiet)
     std::fprintf(stderr, "markloop: %s: stopping\n", strsignal(stop_signal));
   if (exit_status == 0) detail::shut_down(ecu, config, quiet);
+  if (!config.landmarks_out.empty() && !write_landmarks_csv(config.landmarks_out, ecu.engine().database())) {
+    std::fprintf(stderr, "markloop: %s: cannot write: %s\n", config.landmarks_out.c_str(), std::strerror(errno));
+    exit_status = exit_status == 0 ? 1 : exit_status;
+  }
   if (auto ec = can_out.close()) {
     std::fprintf(stderr, "markloop: %s: %s\n", config.can.out_log.c_str(), ec.message().c_str());
     exit_status = exit_status == 0 ? 1 : exit_status;

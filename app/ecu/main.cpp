@@ -19,7 +19,7 @@ Live (car, HIL):  markloop --config /etc/markloop/markloop.conf
                   markloop --camera-device /dev/video0 --can-interface can0
 File mode:        markloop --camera-file DIR/frames.y4m --can-in DIR/odometry.log
                            --can-out OUT.log [--calibration FILE] [--map FILE]
-                           [--detections-out FILE] [--realtime]
+                           [--detections-out FILE] [--landmarks-out FILE] [--realtime]
 
 Options (each overrides the same setting of the configuration file):
   --config FILE          key = value configuration (see markloop.conf); read first
@@ -35,6 +35,8 @@ Options (each overrides the same setting of the configuration file):
   --map FILE             place database, loaded at start, saved at exit and on
                          command (map.file)
   --detections-out FILE  CSV of every detection (detections_out)
+  --landmarks-out FILE   file mode: CSV of the landmarks in the database at the
+                         end (landmarks_out)
   --realtime             file mode: pace frames to the recorded rate
   --first-frame N        file mode: start processing at frame N (file.first_frame)
   --frames N             file mode: process N frames (file.frames)
@@ -84,7 +86,7 @@ int main(int argc, char** argv) {
     const char* value = markloop::cli::option_value(
         argc, argv, i,
         {"--config", "--camera-device", "--camera-file", "--can-interface", "--can-in", "--can-out",
-         "--calibration", "--map", "--detections-out", "--k", "--first-frame", "--frames", "--summary",
+         "--calibration", "--map", "--detections-out", "--landmarks-out", "--k", "--first-frame", "--frames", "--summary",
          "--set"});
     if (arg == "--config") continue;
     else if (arg == "--camera-device") set("camera.device", value);
@@ -95,6 +97,7 @@ int main(int argc, char** argv) {
     else if (arg == "--calibration") set("calibration", value);
     else if (arg == "--map") set("map.file", value);
     else if (arg == "--detections-out") set("detections_out", value);
+    else if (arg == "--landmarks-out") set("landmarks_out", value);
     else if (arg == "--k") set("engine.k", value);
     else if (arg == "--first-frame") set("file.first_frame", value);
     else if (arg == "--frames") set("file.frames", value);

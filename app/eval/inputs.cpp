@@ -107,12 +107,12 @@ bool whole_field(std::string_view name, std::string_view text, double limit, std
   return true;
 }
 
-bool frame_field(std::string_view text, std::size_t frame_count, FrameIndex& out,
+bool frame_field(std::string_view name, std::string_view text, std::size_t frame_count, FrameIndex& out,
                  std::string& problem) {
   std::uint32_t frame = 0;
-  if (!whole_field("frame", text, 4294967296.0, frame, problem)) return false;
+  if (!whole_field(name, text, 4294967296.0, frame, problem)) return false;
   if (frame >= frame_count) {
-    problem = "frame " + std::to_string(frame) + " is beyond the truth's " +
+    problem = std::string(name) + " " + std::to_string(frame) + " is beyond the truth's " +
               std::to_string(frame_count) + " frames (frames.csv)";
     return false;
   }
@@ -194,7 +194,7 @@ bool load_visible(const std::string& path, std::size_t frame_count,
       [&](const std::vector<std::string_view>& f) {
         std::string problem;
         VisibleMarking m;
-        if (frame_field(f[0], frame_count, m.frame, problem) &&
+        if (frame_field("frame", f[0], frame_count, m.frame, problem) &&
             whole_field("id", f[1], 4294967296.0, m.id, problem) &&
             class_field("class", f[2], m.label, problem) && quad_fields(f, 3, m.quad, problem))
           out.push_back(m);
@@ -214,7 +214,7 @@ bool load_detections(const std::string& path, std::size_t frame_count,
       [&](const std::vector<std::string_view>& f) {
         std::string problem;
         DetectionRecord d;
-        if (!frame_field(f[0], frame_count, d.frame, problem) ||
+        if (!frame_field("frame", f[0], frame_count, d.frame, problem) ||
             !class_field("label", f[1], d.label, problem) ||
             !number_field("score", f[2], d.score, problem) || !quad_fields(f, 3, d.quad, problem) ||
             !number_field("ground_x", f[11], d.ground_x, problem) ||
@@ -229,6 +229,33 @@ bool load_detections(const std::string& path, std::size_t frame_count,
   std::stable_sort(out.begin(), out.end(),
                    [](const DetectionRecord& a, const DetectionRecord& b) { return a.frame < b.frame; });
   return ok;
+}
+
+bool load_landmarks(const std::string& path, std::size_t frame_count, std::vector<LandmarkRecord>& out,
+                    std::string& error) {
+  out.clear();
+  return CsvFile::read(
+      path, "label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose",
+      [&](const std::vector<std::string_view>& f) {
+        std::string problem;
+        LandmarkRecord l;
+        std::uint32_t has_car_pose = 0;
+        if (!class_field("label", f[0], l.label, problem) ||
+            !whole_field("observations", f[1], 65536.0, l.observations, problem) ||
+            !frame_field("first_frame", f[2], frame_count, l.first_frame, problem) ||
+            !frame_field("last_frame", f[3], frame_count, l.last_frame, problem) ||
+            !number_field("x", f[4], l.x, problem) || !number_field("y", f[5], l.y, problem) ||
+            !number_field("car_x", f[6], l.car_x, problem) || !number_field("car_y", f[7], l.car_y, problem) ||
+            !number_field("car_yaw", f[8], l.car_yaw, problem) ||
+            !whole_field("has_car_pose", f[9], 2.0, has_car_pose, problem))
+          return problem;
+        if (l.first_frame > l.last_frame)
+          return "first_frame " + std::string(f[2]) + " is after last_frame " + std::string(f[3]);
+        l.has_car_pose = has_car_pose == 1;
+        out.push_back(l);
+        return problem;
+      },
+      error);
 }
 
 }  // namespace markloop::eval

@@ -44,6 +44,19 @@ struct DetectionRecord {
   double ground_y = 0.0;
 };
 
+// The ECU's --landmarks-out: the landmarks in its database at the end,
+// label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose
+// (x, y and the car's pose at last_frame in the ECU's odometry frame).
+struct LandmarkRecord {
+  Label label = 0;
+  std::uint32_t observations = 0;
+  FrameIndex first_frame = 0;
+  FrameIndex last_frame = 0;
+  double x = 0.0, y = 0.0;
+  double car_x = 0.0, car_y = 0.0, car_yaw = 0.0;
+  bool has_car_pose = false;
+};
+
 // Reports how far a long read has come on stderr: one line per tenth of the
 // file, and only for files of at least `min_lines` lines, so short runs stay
 // quiet.
@@ -72,5 +85,7 @@ bool load_visible(const std::string& path, std::size_t frame_count,
                   std::vector<VisibleMarking>& out, std::string& error);
 bool load_detections(const std::string& path, std::size_t frame_count,
                      std::vector<DetectionRecord>& out, std::string& error);
+bool load_landmarks(const std::string& path, std::size_t frame_count, std::vector<LandmarkRecord>& out,
+                    std::string& error);
 
 }  // namespace markloop::eval

@@ -41,6 +41,9 @@ options:
   --detections FILE  the ECU's --detections-out CSV; default DIR/ecu-detections.csv
                      (when the default file is absent the marking section is
                      skipped with a note)
+  --landmarks FILE   the ECU's --landmarks-out CSV; default DIR/ecu-landmarks.csv
+                     (when the default file is absent the landmark sections
+                     are skipped with a note)
   --tolerance M      a loop detection is correct when the true positions of its
                      two frames are within M metres; also the radius of a
                      revisit; default 5
@@ -66,16 +69,19 @@ figures:
                      IoU is at least 0.3 (one to one); detection recall and
                      precision (any label), classification accuracy (right
                      label among matched), per class
+  landmarks          each of the ECU's landmarks placed in the truth's world
+                     by its offset from the car at its last frame (the
+                     odometry's drift cancels): on a marking of its label, on
+                     one of another class, or on none (nearest within 2 m)
   markings driven    each pass of the car by a marking (the frames showing
   past               it, gaps under 5 s) whose centre came 3..20 m ahead and
-                     within 6 m to a side, named as the ECU's landmark vote
-                     would name it from the detections matched to it (and,
-                     in frames where a vehicle hides it or the image cuts it,
-                     up to 1 s around the pass, those within 1.5 m of it on
-                     the ground): right, wrong, no label with half
-                     the votes, detected once (no landmark), not detected;
-                     a marking in view at the drive's first or last frame is
-                     not judged
+                     within 6 m to a side: named right or wrong by the
+                     landmark the ECU made of it (on it, seen during the pass
+                     or up to 1 s around it), or no landmark; with its
+                     detections (matched to it, or within 1.5 m of it on the
+                     ground where visible.csv does not show it). A marking in
+                     view at the drive's first frame, or passed less than
+                     40 m before its end, is not judged
 
 Exit status: 0 on success, 2 on bad input or options (FILE:LINE: what).
 )";
@@ -83,6 +89,8 @@ Exit status: 0 on success, 2 on bad input or options (FILE:LINE: what).
 struct Options {
   std::string dir, can, detections, svg, png, json;
   bool detections_given = false;
+  std::string landmarks;
+  bool landmarks_given = false;
   double tolerance = 5.0;
 };
 
@@ -100,9 +108,10 @@ Options parse(int argc, char** argv) {
       continue;
     }
     const char* v =
-        option_value(argc, argv, i, {"--can", "--detections", "--tolerance", "--svg", "--png", "--json"});
+        option_value(argc, argv, i, {"--can", "--detections", "--landmarks", "--tolerance", "--svg", "--png", "--json"});
     if (arg == "--can") o.can = v;
     else if (arg == "--detections") o.detections = v, o.detections_given = true;
+    else if (arg == "--landmarks") o.landmarks = v, o.landmarks_given = true;
     else if (arg == "--tolerance") o.tolerance = parse_number(arg, v);
     else if (arg == "--svg") o.svg = v;
     else if (arg == "--png") o.png = v;
@@ -113,6 +122,7 @@ Options parse(int argc, char** argv) {
   const std::filesystem::path dir(o.dir);
   if (o.can.empty()) o.can = dir / "ecu-can.log";
   if (o.detections.empty()) o.detections = dir / "ecu-detections.csv";
+  if (o.landmarks.empty()) o.landmarks = dir / "ecu-landmarks.csv";
   if (o.svg.empty()) o.svg = dir / "loops.svg";
   if (o.png.empty()) o.png = dir / "loops.png";
   return o;
@@ -175,9 +185,7 @@ const char* outcome_name(PassOutcome o) {
   switch (o) {
     case PassOutcome::NamedRight: return "named_right";
     case PassOutcome::NamedWrong: return "named_wrong";
-    case PassOutcome::NoMajority: return "no_majority";
-    case PassOutcome::DetectedOnce: return "detected_once";
-    case PassOutcome::NotDetected: return "not_detected";
+    case PassOutcome::NoLandmark: return "no_landmark";
   }
   return "?";
 }
@@ -186,21 +194,34 @@ std::string class_name(Label label) {
   return label < perception::kMarkingClassCount ? std::string(perception::kMarkingClassNames[label]) : "?";
 }
 
+void print_landmarks(const LandmarkScore& l) {
+  const std::size_t placed = l.landmarks - l.without_pose;
+  std::printf("\nLandmarks (the ECU's, placed by their offset from the car at their last frame; on a\n"
+              "marking: the nearest within %.1f m)\n",
+              kLandmarkOnMarking_m);
+  std::printf("  %-34s %zu (%zu without the car's pose, not judged)\n", "landmarks", l.landmarks, l.without_pose);
+  std::printf("  %-34s %s (%zu)\n", "on a marking of their label", percent_text(l.right_label, placed).c_str(),
+              l.right_label);
+  std::printf("  %-34s %zu\n", "on a marking of another class", l.wrong_label);
+  std::printf("  %-34s %zu\n", "on no marking", l.on_nothing);
+  if (l.distance_m.count > 0)
+    std::printf("  %-34s %.2f / %.2f / %.2f m\n", "distance to it, median / p99 / max", l.distance_m.median,
+                l.distance_m.p99, l.distance_m.max);
+}
+
 void print_passes(const PassScore& p) {
   const std::size_t total = p.passes.size();
   const PassRegion region;
   std::printf("\nMarkings driven past (a pass: the frames showing a marking, gaps under %.0f s; counted\n"
-              "when its centre came %.0f..%.0f m ahead and within %.0f m to a side; named by the ECU's\n"
-              "landmark vote over the detections matched to it, or within %.1f m where not shown)\n",
-              kPassGap_s, region.ahead_min_m, region.ahead_max_m, region.side_m, kSameMarking_m);
-  std::printf("  %-34s %zu (and %zu in view at the drive's start or end, not judged)\n", "passes", total,
+              "when its centre came %.0f..%.0f m ahead and within %.0f m to a side; named by the landmark\n"
+              "the ECU made of it on that pass)\n",
+              kPassGap_s, region.ahead_min_m, region.ahead_max_m, region.side_m);
+  std::printf("  %-34s %zu (and %zu at the drive's start or end, not judged)\n", "passes", total,
               p.cut_by_drive_ends);
   std::printf("  %-34s %s (%zu)\n", "named right", percent_text(p.count(PassOutcome::NamedRight), total).c_str(),
               p.count(PassOutcome::NamedRight));
   std::printf("  %-34s %zu\n", "named wrong", p.count(PassOutcome::NamedWrong));
-  std::printf("  %-34s %zu\n", "no label with half the votes", p.count(PassOutcome::NoMajority));
-  std::printf("  %-34s %zu\n", "detected once (no landmark)", p.count(PassOutcome::DetectedOnce));
-  std::printf("  %-34s %zu\n", "not detected", p.count(PassOutcome::NotDetected));
+  std::printf("  %-34s %zu\n", "no landmark", p.count(PassOutcome::NoLandmark));
   std::printf("  %-14s %8s %8s %8s\n", "class", "passes", "right", "share");
   for (std::size_t c = 0; c < p.passes_of_class.size(); ++c) {
     if (p.passes_of_class[c] == 0) continue;
@@ -218,7 +239,7 @@ void print_passes(const PassScore& p) {
     ++listed;
     std::printf("    %s: marking %u (%s), frames %u..%u, %zu detections", outcome_name(pass.outcome), pass.id,
                 class_name(pass.label).c_str(), pass.first_frame, pass.last_frame, pass.detections);
-    if (pass.detections > 0) std::printf(", most as %s", class_name(pass.named).c_str());
+    if (pass.outcome == PassOutcome::NamedWrong) std::printf(", named %s", class_name(pass.named).c_str());
     std::printf("\n");
   }
   if (unlisted > 0) std::printf("    ... %zu more (all in --json)\n", unlisted);
@@ -226,7 +247,7 @@ void print_passes(const PassScore& p) {
 
 void write_json(const std::string& path, const Options& o, std::size_t frames, double length_m,
                 const EcuCanLog& log, const LoopScore& loops, const MarkingScore* markings,
-                const PassScore* passes) {
+                const LandmarkScore* landmarks, const PassScore* passes) {
   std::FILE* f = open_output(path);
   const replay::Evaluation& e = loops.evaluation;
   std::fprintf(f, "{\"frames\":%zu,\"route_length_m\":%.1f,\"tolerance_m\":%g,", frames, length_m,
@@ -308,6 +329,14 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
     }
     std::fprintf(f, "]}");
   }
+  if (landmarks != nullptr) {
+    const LandmarkScore& l = *landmarks;
+    std::fprintf(f, ",\"landmarks\":{\"count\":%zu,\"without_pose\":%zu,\"right_label\":%zu,\"wrong_label\":%zu,"
+                 "\"on_nothing\":%zu,",
+                 l.landmarks, l.without_pose, l.right_label, l.wrong_label, l.on_nothing);
+    json_spread(f, "distance_m", l.distance_m);
+    std::fputc('}', f);
+  }
   if (passes != nullptr) {
     const PassScore& p = *passes;
     std::fprintf(f, ",\"passes\":{\"count\":%zu,\"cut_by_drive_ends\":%zu", p.passes.size(),
@@ -329,7 +358,8 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
       std::fprintf(f, "%s{\"id\":%u,\"class\":\"%s\",\"frames\":[%u,%u],\"detections\":%zu,\"outcome\":\"%s\"",
                    first ? "" : ",", pass.id, class_name(pass.label).c_str(), pass.first_frame, pass.last_frame,
                    pass.detections, outcome_name(pass.outcome));
-      if (pass.detections > 0) std::fprintf(f, ",\"named\":\"%s\"", class_name(pass.named).c_str());
+      if (pass.outcome == PassOutcome::NamedWrong)
+        std::fprintf(f, ",\"named\":\"%s\"", class_name(pass.named).c_str());
       std::fputc('}', f);
       first = false;
     }
@@ -388,8 +418,21 @@ int main(int argc, char** argv) {
     have_markings = true;
   }
   const MarkingScore markings = have_markings ? score_markings(visible, detections) : MarkingScore{};
-  const PassScore passes =
-      have_markings ? score_passes(world, route, times, visible, detections, markings) : PassScore{};
+  std::vector<LandmarkRecord> landmarks;
+  std::string landmark_note;
+  bool have_landmarks = false;
+  if (!have_markings) {
+    landmark_note = "needs the detections: not evaluated";
+  } else if (!o.landmarks_given && !std::filesystem::exists(o.landmarks)) {
+    landmark_note = o.landmarks + " not found: landmarks not evaluated";
+  } else {
+    if (!load_landmarks(o.landmarks, route.size(), landmarks, error)) fail(error);
+    have_landmarks = true;
+  }
+  const LandmarkScore placed = have_landmarks ? score_landmarks(world, route, landmarks) : LandmarkScore{};
+  const PassScore passes = have_landmarks ? score_passes(world, route, times, visible, detections, markings,
+                                                         landmarks, placed)
+                                          : PassScore{};
 
   // --- table ---
   const double length_m = route_length_m(route);
@@ -492,9 +535,14 @@ int main(int argc, char** argv) {
                   percent_text(markings.confusion[c][c], k.detections).c_str(),
                   percent_text(k.truth_right_label, k.truth_found).c_str());
     }
-    print_passes(passes);
   } else {
     std::printf("\nMarkings: %s\n", marking_note.c_str());
+  }
+  if (have_landmarks) {
+    print_landmarks(placed);
+    print_passes(passes);
+  } else {
+    std::printf("\nLandmarks: %s\n", landmark_note.c_str());
   }
 
   // --- picture ---
@@ -527,7 +575,7 @@ int main(int argc, char** argv) {
   std::printf("\npicture: %s, %s\n", o.svg.c_str(), o.png.c_str());
   if (!o.json.empty()) {
     write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr,
-               have_markings ? &passes : nullptr);
+               have_landmarks ? &placed : nullptr, have_landmarks ? &passes : nullptr);
     std::printf("figures: %s\n", o.json.c_str());
   }
   return 0;

@@ -97,42 +97,54 @@ bool in_region(const WorldMarking& m, const Pose2& car, const PassRegion& region
   return ahead >= region.ahead_min_m && ahead <= region.ahead_max_m && std::abs(side) <= region.side_m;
 }
 
-// The landmark vote over a pass's paired labels, in frame order.
-void vote(const std::vector<Label>& labels, MarkingPass& pass) {
-  pass.detections = labels.size();
-  if (labels.empty()) {
-    pass.outcome = PassOutcome::NotDetected;
-    return;
-  }
-  std::array<std::size_t, perception::kMarkingClassCount> votes{};
-  for (const Label l : labels)
-    if (l < votes.size()) ++votes[l];
-  // The most votes wins; of equals, the label voted for first.
-  std::size_t best = 0;
-  for (const Label l : labels) {
-    if (l < votes.size() && votes[l] > best) {
-      best = votes[l];
-      pass.named = l;
-    }
-  }
-  if (labels.size() < 2)
-    pass.outcome = PassOutcome::DetectedOnce;
-  else if (2 * best < labels.size())
-    pass.outcome = PassOutcome::NoMajority;
-  else
-    pass.outcome = pass.named == pass.label ? PassOutcome::NamedRight : PassOutcome::NamedWrong;
-}
-
 }  // namespace
+
+LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
+                              const std::vector<LandmarkRecord>& landmarks) {
+  LandmarkScore score;
+  score.landmarks = landmarks.size();
+  score.marking_of.assign(landmarks.size(), std::nullopt);
+  std::vector<double> distances;
+  for (std::size_t i = 0; i < landmarks.size(); ++i) {
+    const LandmarkRecord& l = landmarks[i];
+    if (!l.has_car_pose || l.last_frame >= route.size()) {
+      ++score.without_pose;
+      continue;
+    }
+    const Pose2 seen_from{l.car_x, l.car_y, l.car_yaw};
+    const Pose2 offset = compose(inverse(seen_from), Pose2{l.x, l.y, 0.0});
+    const Pose2 place = compose(route[l.last_frame], offset);
+    double nearest = kLandmarkOnMarking_m;
+    for (std::size_t m = 0; m < world.size(); ++m) {
+      const double d = std::hypot(world[m].x - place.x, world[m].y - place.y);
+      if (d <= nearest) {
+        nearest = d;
+        score.marking_of[i] = m;
+      }
+    }
+    if (!score.marking_of[i]) {
+      ++score.on_nothing;
+      continue;
+    }
+    distances.push_back(nearest);
+    if (world[*score.marking_of[i]].label == l.label)
+      ++score.right_label;
+    else
+      ++score.wrong_label;
+  }
+  score.distance_m = spread_of(std::move(distances));
+  return score;
+}
 
 PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
                        const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
                        const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
+                       const std::vector<LandmarkRecord>& landmarks, const LandmarkScore& placed,
                        const PassRegion& region) {
   PassScore score;
   // The readers guarantee frames inside the route; anything else is not judged.
   if (frame_times.size() != route.size() || markings.paired_label.size() != truth.size() ||
-      markings.detection_paired.size() != detections.size())
+      markings.detection_paired.size() != detections.size() || placed.marking_of.size() != landmarks.size())
     return score;
   for (const VisibleMarking& t : truth)
     if (t.frame >= route.size()) return score;
@@ -141,6 +153,10 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
 
   std::unordered_map<std::uint32_t, std::size_t> world_index;
   for (std::size_t i = 0; i < world.size(); ++i) world_index.emplace(world[i].id, i);
+  // The landmarks on each marking.
+  std::unordered_multimap<std::size_t, std::size_t> landmarks_on;
+  for (std::size_t i = 0; i < landmarks.size(); ++i)
+    if (placed.marking_of[i]) landmarks_on.emplace(*placed.marking_of[i], i);
 
   // The visible rows of each marking in frame order (truth is sorted by frame).
   std::vector<std::size_t> rows(truth.size());
@@ -149,14 +165,14 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
                    [&](std::size_t a, std::size_t b) { return truth[a].id < truth[b].id; });
 
   auto time_of = [&](std::size_t row) { return frame_times[truth[row].frame]; };
+  std::vector<double> odometer(route.size(), 0.0);
+  for (std::size_t f = 1; f < route.size(); ++f)
+    odometer[f] = odometer[f - 1] + std::hypot(route[f].x - route[f - 1].x, route[f].y - route[f - 1].y);
   // Unpaired detections on the ground where a marking lies, in the frames
-  // visible.csv leaves it out of, vote for it too, as they would in the
-  // ECU's track.
+  // visible.csv leaves it out of, are detections of it too.
   std::vector<bool> taken = markings.detection_paired;
   auto by_frame = [](const DetectionRecord& d, FrameIndex f) { return d.frame < f; };
 
-  std::vector<std::pair<FrameIndex, Label>> votes;
-  std::vector<Label> labels;
   for (std::size_t begin = 0; begin < rows.size();) {
     const VisibleMarking& first = truth[rows[begin]];
     const auto found = world_index.find(first.id);
@@ -173,17 +189,20 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
     bool in_range = false;
     for (std::size_t i = begin; i < end; ++i)
       if (in_region(marking, route[truth[rows[i]].frame], region)) in_range = true;
-    if (in_range && (pass_first == 0 || pass_last + 1 >= route.size())) ++score.cut_by_drive_ends;
-    if (!in_range || pass_first == 0 || pass_last + 1 >= route.size()) {
+    const bool cut = pass_first == 0 || odometer.back() - odometer[pass_last] < kSettleDistance_m;
+    if (in_range && cut) ++score.cut_by_drive_ends;
+    if (!in_range || cut) {
       begin = end;
       continue;
     }
 
-    votes.clear();
+    MarkingPass pass;
+    pass.id = first.id;
+    pass.label = first.label;
+    pass.first_frame = pass_first;
+    pass.last_frame = pass_last;
     for (std::size_t i = begin; i < end; ++i)
-      if (const auto& label = markings.paired_label[rows[i]]) votes.emplace_back(truth[rows[i]].frame, *label);
-    // The frames around and between the visible ones, where a vehicle hides
-    // the marking or the image cuts it.
+      if (markings.paired_label[rows[i]]) ++pass.detections;
     FrameIndex from = pass_first, to = pass_last;
     while (from > 0 && frame_times[pass_first] - frame_times[from - 1] <= kPassMargin_s) --from;
     while (to + 1 < route.size() && frame_times[to + 1] - frame_times[pass_last] <= kPassMargin_s) ++to;
@@ -197,18 +216,21 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
         const auto index = static_cast<std::size_t>(d - detections.begin());
         if (taken[index] || std::hypot(d->ground_x - ahead, d->ground_y - side) > kSameMarking_m) continue;
         taken[index] = true;
-        votes.emplace_back(frame, d->label);
+        ++pass.detections;
       }
     }
-    std::stable_sort(votes.begin(), votes.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    labels.clear();
-    for (const auto& v : votes) labels.push_back(v.second);
-    MarkingPass pass;
-    pass.id = first.id;
-    pass.label = first.label;
-    pass.first_frame = pass_first;
-    pass.last_frame = pass_last;
-    vote(labels, pass);
+    // The landmark the ECU made of the marking on this pass.
+    const LandmarkRecord* made = nullptr;
+    const auto [on_begin, on_end] = landmarks_on.equal_range(found->second);
+    for (auto it = on_begin; it != on_end; ++it) {
+      const LandmarkRecord& l = landmarks[it->second];
+      if (l.last_frame < from || l.first_frame > to) continue;
+      if (made == nullptr || l.observations > made->observations) made = &l;
+    }
+    if (made != nullptr) {
+      pass.named = made->label;
+      pass.outcome = made->label == pass.label ? PassOutcome::NamedRight : PassOutcome::NamedWrong;
+    }
     score.passes.push_back(pass);
     ++score.outcomes[static_cast<std::size_t>(pass.outcome)];
     if (pass.label < score.passes_of_class.size()) {

@@ -89,48 +89,71 @@ struct MarkingScore {
 MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
                             const std::vector<DetectionRecord>& detections);
 
+// The ECU's landmarks placed in the truth's world: each one's offset from
+// the car at its last_frame (both in the ECU's odometry frame, so the drift
+// cancels) applied to the car's true pose in that frame. A landmark lies on
+// the nearest marking within kLandmarkOnMarking_m of that place.
+inline constexpr double kLandmarkOnMarking_m = 2.0;
+
+struct LandmarkScore {
+  std::size_t landmarks = 0;
+  std::size_t without_pose = 0;  // no car pose: not placed, not judged
+  std::size_t right_label = 0;   // on a marking of its label
+  std::size_t wrong_label = 0;   // on a marking of another class
+  std::size_t on_nothing = 0;    // on no marking
+  // Per landmark: the index in `world` of the marking it lies on.
+  std::vector<std::optional<std::size_t>> marking_of;
+  // Per landmark, when placed: its distance from that place to the marking.
+  Spread distance_m;
+};
+
+LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
+                              const std::vector<LandmarkRecord>& landmarks);
+
 // One pass of the car by a marking: the frames in which the simulator shows
 // it, none more than kPassGap_s after the one before (a revisit comes back
 // at least 10 s later; a vehicle in front hides a marking for less).
 inline constexpr double kPassGap_s = 5.0;
 // visible.csv leaves a marking out while a vehicle hides its centre or the
-// image cuts it; detections are sought in those frames of a pass, and up to
-// this long before and after it.
+// image cuts it: a pass reaches this long before and after its frames.
 inline constexpr double kPassMargin_s = 1.0;
-
 // The ECU's landmark tracker joins a detection to a track within this
 // distance on the ground (engine TrackerConfig's default).
 inline constexpr double kSameMarking_m = 1.5;
 
 // A pass counts when the marking's centre lay in the detector's default
-// region in one of its frames, in the car's frame (frames.csv's pose), and
-// the marking was out of view at the drive's first and last frames.
+// region in one of its frames, in the car's frame (frames.csv's pose), the
+// marking was out of view at the drive's first frame, and the drive went on
+// for kSettleDistance_m after the pass: the ECU holds a landmark back until
+// the car is 15 m past it (engine.release_lag_m), and a drive's last tracks
+// are never committed.
+inline constexpr double kSettleDistance_m = 40.0;
 struct PassRegion {
   double ahead_min_m = 3.0;
   double ahead_max_m = 20.0;
   double side_m = 6.0;
 };
 
-// What the ECU's landmark vote (LandmarkTracker) would make of the
-// detections paired with a marking over one pass: the label with the most
-// votes, ties to the one detected first, wins when it holds at least half
-// of them; fewer than two make no landmark.
-enum class PassOutcome { NamedRight, NamedWrong, NoMajority, DetectedOnce, NotDetected };
-inline constexpr std::size_t kPassOutcomeCount = 5;
+// What the ECU made of a pass: a landmark on the marking, seen during the
+// pass, with the marking's class or another; or none.
+enum class PassOutcome { NamedRight, NamedWrong, NoLandmark };
+inline constexpr std::size_t kPassOutcomeCount = 3;
 
 struct MarkingPass {
   std::uint32_t id = 0;
   Label label = 0;
-  FrameIndex first_frame = 0, last_frame = 0;
-  std::size_t detections = 0;  // paired with the marking in the pass
-  Label named = 0;             // the vote's winner, when there were detections
-  PassOutcome outcome = PassOutcome::NotDetected;
+  FrameIndex first_frame = 0, last_frame = 0;  // the frames showing it
+  // Detections of it: paired with it where shown, within kSameMarking_m of
+  // it on the ground in the pass's other frames.
+  std::size_t detections = 0;
+  Label named = 0;  // the landmark's label, unless NoLandmark
+  PassOutcome outcome = PassOutcome::NoLandmark;
 };
 
 struct PassScore {
   std::vector<MarkingPass> passes;  // in range, by first frame
-  // In range, but in view at the drive's first or last frame: not driven
-  // past within the drive, so not judged.
+  // In range, but in view at the drive's first frame or too near its end:
+  // not judged.
   std::size_t cut_by_drive_ends = 0;
   std::array<std::size_t, kPassOutcomeCount> outcomes{};
   std::array<std::size_t, perception::kMarkingClassCount> passes_of_class{};
@@ -138,17 +161,17 @@ struct PassScore {
   std::size_t count(PassOutcome o) const { return outcomes[static_cast<std::size_t>(o)]; }
 };
 
-// Judges every marking the car drove past by the landmark vote on the
-// detections `markings` paired with it, and on the unpaired ones within
-// kSameMarking_m of it on the ground in the frames of the pass that
-// visible.csv leaves it out of, and up to kPassMargin_s around the pass.
-// `route` and `frame_times` are frames.csv's; `truth` and `detections`
-// (sorted by frame) what `markings` was scored on. A visible marking missing
-// from `world` is not judged; inputs that do not fit one another give an
-// empty score.
+// Judges every marking the car drove past by the landmark the ECU made of
+// it: one that `placed` puts on the marking and whose frames meet the pass's
+// (kPassMargin_s around the frames showing it); of several, the one with
+// the most observations. `route` and `frame_times` are frames.csv's;
+// `truth` and `detections` (sorted by frame) what `markings` was scored on.
+// A visible marking missing from `world` is not judged; inputs that do not
+// fit one another give an empty score.
 PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
                        const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
                        const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
+                       const std::vector<LandmarkRecord>& landmarks, const LandmarkScore& placed,
                        const PassRegion& region = {});
 
 double intersection_over_union(const Quad& a, const Quad& b);

@@ -22,13 +22,16 @@ for pattern in "correct / wrong +1 / 1" "revisited 100 m stretches detected +1 o
     "LoopDetection +16 accepted, 2 rejected \(CRC 1, alive counter 1" "2 complete, 1 incomplete" \
     "detection recall \(any label\) +75.0 %" "detection precision \(any label\) +60.0 %" \
     "classification accuracy +66.7 %" "longest loop time \(any cycle\) +12.50 ms" \
-    "^Markings driven past" "passes +0 \(and 0 in view"; do
+    "^Landmarks \(the ECU's" "on a marking of their label +50.0 % \(1\)" "on no marking +1" \
+    "^Markings driven past" "passes +0 \(and 0 at the drive's start or end"; do
   grep -qE -- "$pattern" "$work/run.txt" || { echo "FAIL table lacks '$pattern'"; failures=$((failures + 1)); }
 done
 for f in loops.svg loops.png figures.json; do
   [ -s "$run/$f" ] || { echo "FAIL $f not written"; failures=$((failures + 1)); }
 done
 grep -q '"correct":1,"wrong":1' "$run/figures.json" || { echo "FAIL json lacks the loop counts"; failures=$((failures + 1)); }
+grep -q '"landmarks":{"count":2,"without_pose":0,"right_label":1,"wrong_label":0,"on_nothing":1' "$run/figures.json" ||
+  { echo "FAIL json lacks the landmarks"; failures=$((failures + 1)); }
 grep -q '"passes":{"count":0,"cut_by_drive_ends":0,"named_right":0' "$run/figures.json" ||
   { echo "FAIL json lacks the passes"; failures=$((failures + 1)); }
 if command -v python3 >/dev/null; then
@@ -41,6 +44,13 @@ check "tolerance 2 m" 0 "correct / wrong +0 / 2" -- "$eval_tool" "$run" --tolera
 run=$(fresh nodet) && rm "$run/ecu-detections.csv"
 check "no detections file: note" 0 "ecu-detections.csv not found: marking detection not evaluated" -- "$eval_tool" "$run"
 check "--detections missing" 2 "absent.csv: cannot open file" -- "$eval_tool" "$run" --detections "$run/absent.csv"
+run=$(fresh nolandmarks) && rm "$run/ecu-landmarks.csv"
+check "no landmarks file: note" 0 "ecu-landmarks.csv not found: landmarks not evaluated" -- "$eval_tool" "$run"
+check "--landmarks missing" 2 "absent.csv: cannot open file" -- "$eval_tool" "$run" --landmarks "$run/absent.csv"
+run=$(fresh badlandmark) && sed -i '3s/,15,19,/,25,19,/' "$run/ecu-landmarks.csv"
+check "landmark frames reversed" 2 "^markloop-eval: $run/ecu-landmarks.csv:3: first_frame 25 is after last_frame 19" -- "$eval_tool" "$run"
+run=$(fresh farlandmark) && sed -i '2s/,30,48,/,30,900,/' "$run/ecu-landmarks.csv"
+check "landmark beyond the truth" 2 "^markloop-eval: $run/ecu-landmarks.csv:2: last_frame 900 is beyond the truth's 800 frames" -- "$eval_tool" "$run"
 
 run=$(fresh badcan) && printf '(0000000080.000000) vcan0 2A0#00\n(0000000080.100000) vcan0 2A0#XY\n' >>"$run/ecu-can.log"
 check "bad candump line" 2 "^markloop-eval: $run/ecu-can.log:33:" -- "$eval_tool" "$run"

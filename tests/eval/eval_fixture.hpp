@@ -12,6 +12,8 @@
 //      page after it fails the alive-counter check).
 // Status pages, one odometry frame (another id). Markings: 4 visible, 5
 // detections, 3 matched (one only by IoU), 2 with the right label.
+// Landmarks: 2, one on a marking of its class, one on none; no pass by a
+// marking in range.
 #pragma once
 
 #include <cmath>
@@ -147,6 +149,12 @@ inline void write_run(const std::filesystem::path& dir) {
              "10,ped,0.6," + rectangle(300, 100, 340, 140) + ",20.0,3.0\n" +
              "11,crosswalk,0.8," + rectangle(52, 0, 152, 100) + ",7.0,0.0\n" +
              "12,ped,0.5," + rectangle(300, 100, 340, 140) + ",20.0,3.0\n");
+  // The ECU's odometry frame is the truth's here: the stop line's landmark
+  // lies 0.2 m from it; the ped one on no marking.
+  write_text(dir / "ecu-landmarks.csv",
+             "label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose\n"
+             "stop,4,30,48,50.2,3.0,48.0,0.0,0.0,1\n"
+             "ped,3,15,19,20.0,20.0,19.0,0.0,0.0,1\n");
 
   CandumpFile log(dir / "ecu-can.log");
   dbc::E2eSenderState loop_sender, status_sender;

@@ -204,7 +204,7 @@ TEST_CASE("marking detections are matched to visible markings one to one") {
   }
 }
 
-TEST_CASE("each pass by a marking is named by the landmark vote on its paired detections") {
+TEST_CASE("landmarks are placed by their offset from the car and each pass named by its landmark") {
   // The car drives along x at 1 m a frame, 10 frames a second; from frame
   // 400 on it starts again at x = 0 (a second visit).
   std::vector<Pose2> route;
@@ -218,8 +218,28 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   const std::vector<WorldMarking> world = {
       {1, forward, 30.0, 0.0, 0.0},  {2, stop, 60.0, 1.0, 0.0},  {3, bike, 90.0, -2.0, 0.0},
       {4, rail, 120.0, 0.0, 0.0},    {5, ped, 150.0, 8.0, 0.0},   {6, stop, 200.0, 0.0, 0.0},
-      {8, bike, 300.0, 0.0, 0.0},    {9, stop, 15.0, 0.0, 0.0},   {10, stop, 410.0, 0.0, 0.0},
+      {8, bike, 300.0, 0.0, 0.0},    {9, stop, 15.0, 0.0, 0.0},   {10, stop, 390.0, 0.0, 0.0},
       {11, forward, 350.0, 0.0, 0.0},
+  };
+  // The ECU's odometry frame: turned and moved against the truth's.
+  const Pose2 drift{100.0, -40.0, 0.3};
+  std::vector<LandmarkRecord> landmarks;
+  auto landmark = [&](Label label, std::uint32_t observations, FrameIndex first, FrameIndex last, double x,
+                      double y) {
+    LandmarkRecord l;
+    l.label = label;
+    l.observations = observations;
+    l.first_frame = first;
+    l.last_frame = last;
+    const Pose2 car = compose(drift, route[last]);
+    const Pose2 at = compose(drift, Pose2{x, y, 0.0});
+    l.x = at.x;
+    l.y = at.y;
+    l.car_x = car.x;
+    l.car_y = car.y;
+    l.car_yaw = car.yaw;
+    l.has_car_pose = true;
+    landmarks.push_back(l);
   };
   // The rows of each marking in frame order, as in visible.csv.
   std::vector<VisibleMarking> visible;
@@ -228,20 +248,19 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
     visible.push_back({frame, id, label, {}});
     paired.paired_label.push_back(detected);
   };
-  // 1: 20..5 m ahead, three of four detections right: named right. Seen
-  // again on the second visit (its own pass), right twice.
+  // 1: 20..5 m ahead, a landmark of its class 0.3 m off. Seen again on the
+  // second visit (its own pass, its own landmark).
   show(1, forward, 10, forward);
-  show(1, forward, 15, leftturn);
-  show(1, forward, 20, forward);
   show(1, forward, 25, forward);
-  // 2: two against two, the wrong label voted for first: it wins the tie.
+  landmark(forward, 4, 10, 27, 30.3, 0.0);
+  // 2: two landmarks on it; the one with more observations is another class.
   show(2, stop, 40, leftturn);
-  show(2, stop, 42, stop);
-  show(2, stop, 44, stop);
   show(2, stop, 46, leftturn);
+  landmark(leftturn, 5, 40, 48, 60.0, 1.0);
+  landmark(stop, 3, 41, 47, 60.2, 1.1);
   // 3: the first row lies 25 m ahead, out of range, but the pass counts by
-  // its second. Hidden in the frames between, it is detected once where it
-  // lies (and a detection 5 m off is not its).
+  // its second. Not shown in the frames between, it is detected once where
+  // it lies (a detection 5 m off is not its); no landmark.
   show(3, bike, 65, std::nullopt);
   show(3, bike, 80, bike);
   std::vector<DetectionRecord> detections(4);
@@ -257,20 +276,23 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   detections[2].label = bike;
   detections[2].ground_x = 10.0;
   detections[2].ground_y = -2.0;
-  // 11: visible in one frame; detected again half a second later, where
-  // visible.csv no longer lists it (the image cuts it): named right.
+  // 11: shown in one frame, detected again half a second later (the image
+  // cuts it then); its landmark named right.
   detections[3].frame = 345;
   detections[3].label = forward;
   detections[3].ground_x = 5.2;
   detections[3].ground_y = 0.3;
   paired.detection_paired = {false, false, true, false};
-  // 8: a single detection makes no landmark.
-  show(8, bike, 290, bike);
   show(11, forward, 340, forward);
-  // 4: three labels, none with half the votes.
+  landmark(forward, 3, 340, 346, 350.0, 0.0);
+  // 8: a landmark of its class, but from other frames than the pass's.
+  show(8, bike, 290, bike);
+  landmark(bike, 3, 100, 110, 300.0, 0.0);
+  // 4: a landmark on it without the car's pose: not placed.
   show(4, rail, 110, rail);
-  show(4, rail, 112, stop);
-  show(4, rail, 114, ped);
+  show(4, rail, 112, rail);
+  landmark(rail, 3, 110, 114, 120.0, 0.0);
+  landmarks.back().has_car_pose = false;
   // 5: 8 m to the side, never in range: not counted, though detected.
   show(5, ped, 140, ped);
   show(5, ped, 141, ped);
@@ -281,19 +303,31 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   show(7, stop, 190, stop);
   show(1, forward, 410, forward);
   show(1, forward, 420, forward);
-  // 9 and 10: in view at the drive's first and last frames, not judged.
+  landmark(forward, 6, 410, 428, 30.0, 0.0);
+  // 9: in view at the drive's first frame; 10: passed 24 m before its end.
   show(9, stop, 0, stop);
   show(9, stop, 1, stop);
-  show(10, stop, 799, std::nullopt);
+  show(10, stop, 775, std::nullopt);
+  // A landmark on no marking.
+  landmark(ped, 3, 500, 510, 130.0, 4.0);
 
-  const PassScore score = score_passes(world, route, times, visible, detections, paired);
+  const LandmarkScore placed = score_landmarks(world, route, landmarks);
+  CHECK(placed.landmarks == 8);
+  CHECK(placed.without_pose == 1);
+  CHECK(placed.right_label == 5);
+  CHECK(placed.wrong_label == 1);
+  CHECK(placed.on_nothing == 1);
+  REQUIRE(placed.marking_of[0].has_value());
+  CHECK(world[*placed.marking_of[0]].id == 1);
+  CHECK(placed.distance_m.max == Approx(0.3).margin(1e-6));
+  CHECK_FALSE(placed.marking_of[7].has_value());
+
+  const PassScore score = score_passes(world, route, times, visible, detections, paired, landmarks, placed);
   REQUIRE(score.passes.size() == 8);
   CHECK(score.cut_by_drive_ends == 2);
-  CHECK(score.count(PassOutcome::NamedRight) == 4);
+  CHECK(score.count(PassOutcome::NamedRight) == 3);
   CHECK(score.count(PassOutcome::NamedWrong) == 1);
-  CHECK(score.count(PassOutcome::NoMajority) == 1);
-  CHECK(score.count(PassOutcome::DetectedOnce) == 1);
-  CHECK(score.count(PassOutcome::NotDetected) == 1);
+  CHECK(score.count(PassOutcome::NoLandmark) == 4);
   CHECK(score.passes_of_class[forward] == 3);
   CHECK(score.named_right_of_class[forward] == 3);
   CHECK(score.passes_of_class[ped] == 0);
@@ -302,21 +336,25 @@ TEST_CASE("each pass by a marking is named by the landmark vote on its paired de
   CHECK(first.id == 1);
   CHECK(first.first_frame == 10);
   CHECK(first.last_frame == 25);
-  CHECK(first.detections == 4);
-  const MarkingPass& tie = score.passes[1];
-  CHECK(tie.outcome == PassOutcome::NamedWrong);
-  CHECK(tie.named == leftturn);
-  const MarkingPass& hidden = score.passes[2];
-  CHECK(hidden.id == 3);
-  CHECK(hidden.detections == 2);
-  CHECK(hidden.outcome == PassOutcome::NamedRight);
-  CHECK(score.passes[3].outcome == PassOutcome::NoMajority);
+  CHECK(first.detections == 2);
+  CHECK(first.outcome == PassOutcome::NamedRight);
+  const MarkingPass& two_landmarks = score.passes[1];
+  CHECK(two_landmarks.outcome == PassOutcome::NamedWrong);
+  CHECK(two_landmarks.named == leftturn);
+  const MarkingPass& not_shown = score.passes[2];
+  CHECK(not_shown.id == 3);
+  CHECK(not_shown.detections == 2);
+  CHECK(not_shown.outcome == PassOutcome::NoLandmark);
+  const MarkingPass& without_pose = score.passes[3];
+  CHECK(without_pose.id == 4);
+  CHECK(without_pose.outcome == PassOutcome::NoLandmark);
   const MarkingPass& unseen = score.passes[4];
-  CHECK(unseen.outcome == PassOutcome::NotDetected);
+  CHECK(unseen.outcome == PassOutcome::NoLandmark);
+  CHECK(unseen.detections == 0);
   CHECK(unseen.first_frame == 185);
   CHECK(unseen.last_frame == 225);
   CHECK(score.passes[5].id == 8);
-  CHECK(score.passes[5].outcome == PassOutcome::DetectedOnce);
+  CHECK(score.passes[5].outcome == PassOutcome::NoLandmark);
   const MarkingPass& cut_by_image = score.passes[6];
   CHECK(cut_by_image.id == 11);
   CHECK(cut_by_image.detections == 2);
