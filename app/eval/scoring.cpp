@@ -92,6 +92,15 @@ std::array<double, 2> in_car_frame(const WorldMarking& m, const Pose2& car) {
   return {std::cos(car.yaw) * dx + std::sin(car.yaw) * dy, -std::sin(car.yaw) * dx + std::cos(car.yaw) * dy};
 }
 
+// From (x, y) to the marking, as score_landmarks measures it.
+double distance_to(const WorldMarking& m, double x, double y, Label crosswalk) {
+  const double dx = x - m.x, dy = y - m.y;
+  const double along = std::cos(m.heading) * dx + std::sin(m.heading) * dy;
+  double across = std::abs(-std::sin(m.heading) * dx + std::cos(m.heading) * dy);
+  if (m.label == crosswalk) across = std::max(0.0, across - kCrosswalkReach_m);
+  return std::hypot(along, across);
+}
+
 bool in_region(const WorldMarking& m, const Pose2& car, const PassRegion& region) {
   const auto [ahead, side] = in_car_frame(m, car);
   return ahead >= region.ahead_min_m && ahead <= region.ahead_max_m && std::abs(side) <= region.side_m;
@@ -101,6 +110,7 @@ bool in_region(const WorldMarking& m, const Pose2& car, const PassRegion& region
 
 LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
                               const std::vector<LandmarkRecord>& landmarks) {
+  const Label crosswalk = *perception::marking_class_from_name("crosswalk");
   LandmarkScore score;
   score.landmarks = landmarks.size();
   score.marking_of.assign(landmarks.size(), std::nullopt);
@@ -116,7 +126,7 @@ LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std:
     const Pose2 place = compose(route[l.last_frame], offset);
     double nearest = kLandmarkOnMarking_m;
     for (std::size_t m = 0; m < world.size(); ++m) {
-      const double d = std::hypot(world[m].x - place.x, world[m].y - place.y);
+      const double d = distance_to(world[m], place.x, place.y, crosswalk);
       if (d <= nearest) {
         nearest = d;
         score.marking_of[i] = m;

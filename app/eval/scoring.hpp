@@ -92,8 +92,12 @@ MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
 // The ECU's landmarks placed in the truth's world: each one's offset from
 // the car at its last_frame (both in the ECU's odometry frame, so the drift
 // cancels) applied to the car's true pose in that frame. A landmark lies on
-// the nearest marking within kLandmarkOnMarking_m of that place.
+// the nearest marking within kLandmarkOnMarking_m of that place: of its
+// centre, or for a crosswalk, which spans the road and is detected lane by
+// lane, of the line across the road through its centre, up to
+// kCrosswalkReach_m either side.
 inline constexpr double kLandmarkOnMarking_m = 2.0;
+inline constexpr double kCrosswalkReach_m = 8.0;
 
 struct LandmarkScore {
   std::size_t landmarks = 0;

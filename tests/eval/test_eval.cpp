@@ -219,7 +219,7 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
       {1, forward, 30.0, 0.0, 0.0},  {2, stop, 60.0, 1.0, 0.0},  {3, bike, 90.0, -2.0, 0.0},
       {4, rail, 120.0, 0.0, 0.0},    {5, ped, 150.0, 8.0, 0.0},   {6, stop, 200.0, 0.0, 0.0},
       {8, bike, 300.0, 0.0, 0.0},    {9, stop, 15.0, 0.0, 0.0},   {10, stop, 390.0, 0.0, 0.0},
-      {11, forward, 350.0, 0.0, 0.0},
+      {11, forward, 350.0, 0.0, 0.0},  {12, label_of("crosswalk"), 250.0, 0.0, 0.0},
   };
   // The ECU's odometry frame: turned and moved against the truth's.
   const Pose2 drift{100.0, -40.0, 0.3};
@@ -308,13 +308,15 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
   show(9, stop, 0, stop);
   show(9, stop, 1, stop);
   show(10, stop, 775, std::nullopt);
-  // A landmark on no marking.
+  // A landmark on no marking, and one on the crosswalk where it crosses the
+  // next lane (3.5 m from its centre, across the road).
   landmark(ped, 3, 500, 510, 130.0, 4.0);
+  landmark(label_of("crosswalk"), 5, 240, 248, 250.2, 3.5);
 
   const LandmarkScore placed = score_landmarks(world, route, landmarks);
-  CHECK(placed.landmarks == 8);
+  CHECK(placed.landmarks == 9);
   CHECK(placed.without_pose == 1);
-  CHECK(placed.right_label == 5);
+  CHECK(placed.right_label == 6);
   CHECK(placed.wrong_label == 1);
   CHECK(placed.on_nothing == 1);
   REQUIRE(placed.marking_of[0].has_value());
