@@ -193,6 +193,13 @@ TEST_CASE("marking detections are matched to visible markings one to one") {
   CHECK(m.per_class[label_of("bike")].truth_found == 0);
   CHECK(m.per_class[label_of("ped")].detections == 2);
   CHECK(m.per_class[label_of("ped")].detections_matched == 0);
+  // What each visible marking was paired with, and which detections were.
+  REQUIRE(m.paired_label.size() == visible.size());
+  CHECK(m.paired_label[0] == label_of("stop"));
+  CHECK(m.paired_label[1] == label_of("leftturn"));
+  CHECK(m.paired_label[2] == label_of("crosswalk"));
+  CHECK_FALSE(m.paired_label[3].has_value());
+  CHECK(m.detection_paired == std::vector<bool>{true, true, false, true, false});
 
   SECTION("two detections on one marking: only one matches") {
     detections.push_back(detections.front());
@@ -363,21 +370,6 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
   CHECK(cut_by_image.outcome == PassOutcome::NamedRight);
   CHECK(score.passes[7].first_frame == 410);
   CHECK(score.passes[7].outcome == PassOutcome::NamedRight);
-}
-
-TEST_CASE("score_markings records the label paired with each visible marking") {
-  const fs::path dir = fresh_dir("paired");
-  std::vector<VisibleMarking> visible;
-  std::vector<DetectionRecord> detections;
-  std::string error;
-  REQUIRE(load_visible(dir / "visible.csv", fixture::kFrames, visible, error));
-  REQUIRE(load_detections(dir / "ecu-detections.csv", fixture::kFrames, detections, error));
-  const MarkingScore m = score_markings(visible, detections);
-  REQUIRE(m.paired_label.size() == visible.size());
-  CHECK(m.paired_label[0] == label_of("stop"));
-  CHECK(m.paired_label[1] == label_of("leftturn"));
-  CHECK(m.paired_label[2] == label_of("crosswalk"));
-  CHECK_FALSE(m.paired_label[3].has_value());
 }
 
 TEST_CASE("malformed inputs are reported with file and line") {
