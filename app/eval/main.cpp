@@ -43,7 +43,8 @@ options:
                      skipped with a note)
   --landmarks FILE   the ECU's --landmarks-out CSV; default DIR/ecu-landmarks.csv
                      (when the default file is absent the landmark sections
-                     are skipped with a note)
+                     are skipped with a note; markings driven past also need
+                     the detections)
   --tolerance M      a loop detection is correct when the true positions of its
                      two frames are within M metres; also the radius of a
                      revisit; default 5
@@ -421,18 +422,18 @@ int main(int argc, char** argv) {
   std::vector<LandmarkRecord> landmarks;
   std::string landmark_note;
   bool have_landmarks = false;
-  if (!have_markings) {
-    landmark_note = "needs the detections: not evaluated";
-  } else if (!o.landmarks_given && !std::filesystem::exists(o.landmarks)) {
+  if (!o.landmarks_given && !std::filesystem::exists(o.landmarks)) {
     landmark_note = o.landmarks + " not found: landmarks not evaluated";
   } else {
     if (!load_landmarks(o.landmarks, route.size(), landmarks, error)) fail(error);
     have_landmarks = true;
   }
   const LandmarkScore placed = have_landmarks ? score_landmarks(world, route, landmarks) : LandmarkScore{};
-  const PassScore passes = have_landmarks ? score_passes(world, route, times, visible, detections, markings,
-                                                         landmarks, placed)
-                                          : PassScore{};
+  // A pass's detections are told with it: it needs both files.
+  const bool have_passes = have_landmarks && have_markings;
+  const PassScore passes = have_passes ? score_passes(world, route, times, visible, detections, markings,
+                                                      landmarks, placed)
+                                       : PassScore{};
 
   // --- table ---
   const double length_m = route_length_m(route);
@@ -538,12 +539,14 @@ int main(int argc, char** argv) {
   } else {
     std::printf("\nMarkings: %s\n", marking_note.c_str());
   }
-  if (have_landmarks) {
+  if (have_landmarks)
     print_landmarks(placed);
-    print_passes(passes);
-  } else {
+  else
     std::printf("\nLandmarks: %s\n", landmark_note.c_str());
-  }
+  if (have_passes)
+    print_passes(passes);
+  else
+    std::printf("\nMarkings driven past: need the detections and the landmarks: not evaluated\n");
 
   // --- picture ---
   FigureContent figure;
@@ -575,7 +578,7 @@ int main(int argc, char** argv) {
   std::printf("\npicture: %s, %s\n", o.svg.c_str(), o.png.c_str());
   if (!o.json.empty()) {
     write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr,
-               have_landmarks ? &placed : nullptr, have_landmarks ? &passes : nullptr);
+               have_landmarks ? &placed : nullptr, have_passes ? &passes : nullptr);
     std::printf("figures: %s\n", o.json.c_str());
   }
   return 0;

@@ -101,7 +101,7 @@ inline constexpr double kCrosswalkReach_m = 8.0;
 
 struct LandmarkScore {
   std::size_t landmarks = 0;
-  std::size_t without_pose = 0;  // no car pose: not placed, not judged
+  std::size_t without_pose = 0;  // no car pose (or a frame beyond the truth): not placed, not judged
   std::size_t right_label = 0;   // on a marking of its label
   std::size_t wrong_label = 0;   // on a marking of another class
   std::size_t on_nothing = 0;    // on no marking
@@ -131,12 +131,12 @@ inline constexpr double kSameMarking_m = 1.5;
 // for kSettleDistance_m after the pass: the ECU holds a landmark back until
 // the car is 15 m past it (engine.release_lag_m), and a drive's last tracks
 // are never committed.
-inline constexpr double kSettleDistance_m = 40.0;
 struct PassRegion {
   double ahead_min_m = 3.0;
   double ahead_max_m = 20.0;
   double side_m = 6.0;
 };
+inline constexpr double kSettleDistance_m = 40.0;
 
 // What the ECU made of a pass: a landmark on the marking, seen during the
 // pass, with the marking's class or another; or none.

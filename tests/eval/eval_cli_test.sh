@@ -43,6 +43,9 @@ check "tolerance 2 m" 0 "correct / wrong +0 / 2" -- "$eval_tool" "$run" --tolera
 
 run=$(fresh nodet) && rm "$run/ecu-detections.csv"
 check "no detections file: note" 0 "ecu-detections.csv not found: marking detection not evaluated" -- "$eval_tool" "$run"
+grep -qE "on no marking +1" "$work/out" || { echo "FAIL landmarks not judged without the detections"; failures=$((failures + 1)); }
+grep -q "^Markings driven past: need the detections and the landmarks" "$work/out" ||
+  { echo "FAIL no note on the markings driven past"; failures=$((failures + 1)); }
 check "--detections missing" 2 "absent.csv: cannot open file" -- "$eval_tool" "$run" --detections "$run/absent.csv"
 run=$(fresh nolandmarks) && rm "$run/ecu-landmarks.csv"
 check "no landmarks file: note" 0 "ecu-landmarks.csv not found: landmarks not evaluated" -- "$eval_tool" "$run"
