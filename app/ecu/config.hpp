@@ -81,7 +81,7 @@ struct EcuConfig {
   std::string map_file;         // place database; empty: none kept
   bool save_map_on_exit = true;
   std::string detections_out;   // CSV of every detection (file mode, evaluation)
-  std::string landmarks_out;    // CSV of the database's landmarks at the end (file mode, evaluation)
+  std::string landmarks_out;    // CSV of the landmarks this run made (file mode, at the end; evaluation)
   unsigned status_period_ms = 100;
   unsigned odometry_timeout_ms = 60;  // three cycles of VehicleOdometry
   bool realtime_replay = false;       // file mode: pace frames to the recorded rate

@@ -61,15 +61,16 @@ class DetectionsCsv {
   std::array<char, 1 << 16> buffer_{};
 };
 
-// The landmarks the engine holds, oldest first, for markloop-eval to judge
-// against the simulator's markings. Once, after the recording.
+// The landmarks this run made, oldest first, for markloop-eval to judge
+// against the simulator's markings; not those of a loaded map (negative
+// stations), whose frames are another recording's. Once, after the recording.
 bool write_landmarks_csv(const std::string& path, const SequenceDatabase& database) {
   std::FILE* file = std::fopen(path.c_str(), "w");
   if (file == nullptr) return false;
   std::fputs("label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose\n", file);
   for (LandmarkId id = database.first_landmark_id(); id != database.next_landmark_id(); ++id) {
     const Landmark* l = database.landmark(id);
-    if (l == nullptr) continue;
+    if (l == nullptr || l->station < 0.0) continue;
     const std::string_view name = perception::marking_class_name(l->label);
     std::fprintf(file, "%.*s,%u,%u,%u,%.3f,%.3f,%.3f,%.3f,%.6f,%d\n", static_cast<int>(name.size()), name.data(),
                  unsigned{l->observations}, l->first_frame, l->last_frame, double(l->x), double(l->y),

@@ -35,8 +35,8 @@ Options (each overrides the same setting of the configuration file):
   --map FILE             place database, loaded at start, saved at exit and on
                          command (map.file)
   --detections-out FILE  CSV of every detection (detections_out)
-  --landmarks-out FILE   file mode: CSV of the landmarks in the database at the
-                         end (landmarks_out)
+  --landmarks-out FILE   file mode: CSV of the landmarks the run made, written at
+                         the end (landmarks_out)
   --realtime             file mode: pace frames to the recorded rate
   --first-frame N        file mode: start processing at frame N (file.first_frame)
   --frames N             file mode: process N frames (file.frames)

@@ -4,7 +4,8 @@
 # file must hold every landmark of the database (the summary's count), each
 # with the car's pose, and markloop-eval must place them on the simulator's
 # markings of their class (the placement itself, under a drifted odometry
-# frame, is tested in test_eval.cpp). Arguments: a scratch dir,
+# frame, is tested in test_eval.cpp); a loaded map's landmarks are not
+# written. Arguments: a scratch dir,
 # markloop-sim, markloop-eval, then the command that runs markloop.
 set -euo pipefail
 work=$1 sim=$2 eval_tool=$3; shift 3
@@ -15,8 +16,14 @@ rm -rf "$work" && mkdir -p "$work"
 "${ecu[@]}" --camera-file "$work/frames.y4m" --can-in "$work/odometry.log" \
   --calibration "$work/camera.yaml" --can-out "$work/ecu-can.log" \
   --detections-out "$work/ecu-detections.csv" --landmarks-out "$work/ecu-landmarks.csv" \
-  --summary "$work/ecu-summary.json" --set realtime.mlockall=false --set map.file= 2>"$work/ecu.log"
+  --summary "$work/ecu-summary.json" --set realtime.mlockall=false --map "$work/first.map" 2>"$work/ecu.log"
 "$eval_tool" "$work" --json "$work/eval.json" >"$work/eval.txt"
+# The same drive again, the first run's map loaded: the file holds this
+# run's landmarks only, not the map's (their frames are another run's).
+"${ecu[@]}" --camera-file "$work/frames.y4m" --can-in "$work/odometry.log" \
+  --calibration "$work/camera.yaml" --can-out "$work/again-can.log" --map "$work/first.map" \
+  --set map.save_on_exit=false --landmarks-out "$work/again-landmarks.csv" \
+  --summary "$work/again-summary.json" --set realtime.mlockall=false 2>"$work/again.log"
 
 python3 - "$work" <<'PY'
 import json, sys
@@ -35,6 +42,11 @@ checks = [
      landmarks["right_label"]),
     ("within 0.5 m of it at the median", landmarks["distance_m"]["median"] <= 0.5, landmarks["distance_m"]),
     ("passes judged", passes["count"] >= 5, passes["count"]),
+    ("with a map loaded, the database holds both runs' landmarks",
+     json.load(open(f"{work}/again-summary.json"))["landmarks"] == 2 * summary["landmarks"],
+     json.load(open(f"{work}/again-summary.json"))["landmarks"]),
+    ("and the file this run's alone", open(f"{work}/again-landmarks.csv").read() == "\n".join(rows) + "\n",
+     len(open(f"{work}/again-landmarks.csv").read().splitlines()) - 1),
 ]
 failed = 0
 for name, ok, got in checks:
