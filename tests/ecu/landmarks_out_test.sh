@@ -12,7 +12,7 @@ work=$1 sim=$2 eval_tool=$3; shift 3
 ecu=("$@")
 rm -rf "$work" && mkdir -p "$work"
 
-"$sim" drive --scenario loop --seed 3 --max-frames 400 --out "$work" >/dev/null
+"$sim" drive --scenario loop --seed 3 --max-frames 300 --out "$work" >/dev/null
 "${ecu[@]}" --camera-file "$work/frames.y4m" --can-in "$work/odometry.log" \
   --calibration "$work/camera.yaml" --can-out "$work/ecu-can.log" \
   --detections-out "$work/ecu-detections.csv" --landmarks-out "$work/ecu-landmarks.csv" \
