@@ -86,8 +86,8 @@ int main(int argc, char** argv) {
     const char* value = markloop::cli::option_value(
         argc, argv, i,
         {"--config", "--camera-device", "--camera-file", "--can-interface", "--can-in", "--can-out",
-         "--calibration", "--map", "--detections-out", "--landmarks-out", "--k", "--first-frame", "--frames", "--summary",
-         "--set"});
+         "--calibration", "--map", "--detections-out", "--landmarks-out", "--k", "--first-frame", "--frames",
+         "--summary", "--set"});
     if (arg == "--config") continue;
     else if (arg == "--camera-device") set("camera.device", value);
     else if (arg == "--camera-file") set("camera.file", value);

@@ -73,7 +73,8 @@ figures:
   landmarks          each of the ECU's landmarks placed in the truth's world
                      by its offset from the car at its last frame (the
                      odometry's drift cancels): on a marking of its label, on
-                     one of another class, or on none (nearest within 2 m)
+                     one of another class, or on none (the nearest within
+                     2 m; of a crosswalk, anywhere across the road)
   markings driven    each pass of the car by a marking (the frames showing
   past               it, gaps under 5 s) whose centre came 3..20 m ahead and
                      within 6 m to a side: named right or wrong by the
@@ -109,7 +110,8 @@ Options parse(int argc, char** argv) {
       continue;
     }
     const char* v =
-        option_value(argc, argv, i, {"--can", "--detections", "--landmarks", "--tolerance", "--svg", "--png", "--json"});
+        option_value(argc, argv, i,
+                     {"--can", "--detections", "--landmarks", "--tolerance", "--svg", "--png", "--json"});
     if (arg == "--can") o.can = v;
     else if (arg == "--detections") o.detections = v, o.detections_given = true;
     else if (arg == "--landmarks") o.landmarks = v, o.landmarks_given = true;
@@ -198,7 +200,7 @@ std::string class_name(Label label) {
 void print_landmarks(const LandmarkScore& l) {
   const std::size_t placed = l.landmarks - l.without_pose;
   std::printf("\nLandmarks (the ECU's, placed by their offset from the car at their last frame; on a\n"
-              "marking: the nearest within %.1f m)\n",
+              "marking: the nearest within %.1f m, of a crosswalk anywhere across the road)\n",
               kLandmarkOnMarking_m);
   std::printf("  %-34s %zu (%zu without the car's pose, not judged)\n", "landmarks", l.landmarks, l.without_pose);
   std::printf("  %-34s %s (%zu)\n", "on a marking of their label", percent_text(l.right_label, placed).c_str(),
