@@ -270,25 +270,21 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
   // it lies (a detection 5 m off is not its); no landmark.
   show(3, bike, 65, std::nullopt);
   show(3, bike, 80, bike);
-  std::vector<DetectionRecord> detections(4);
-  detections[0].frame = 70;  // the car at x = 70: the marking 20 m ahead, 2 m right
-  detections[0].label = bike;
-  detections[0].ground_x = 19.5;
-  detections[0].ground_y = -2.4;
-  detections[1].frame = 72;
-  detections[1].label = ped;
-  detections[1].ground_x = 13.0;
-  detections[1].ground_y = 3.0;
-  detections[2].frame = 80;  // the detection paired with the visible row
-  detections[2].label = bike;
-  detections[2].ground_x = 10.0;
-  detections[2].ground_y = -2.0;
+  std::vector<DetectionRecord> detections;
+  auto detect = [&](FrameIndex frame, Label label, double ahead, double left) {
+    DetectionRecord d;
+    d.frame = frame;
+    d.label = label;
+    d.ground_x = ahead;
+    d.ground_y = left;
+    detections.push_back(d);
+  };
+  detect(70, bike, 19.5, -2.4);  // the car at x = 70: the marking 20 m ahead, 2 m right
+  detect(72, ped, 13.0, 3.0);
+  detect(80, bike, 10.0, -2.0);  // the detection paired with the visible row
   // 11: shown in one frame, detected again half a second later (the image
   // cuts it then); its landmark named right.
-  detections[3].frame = 345;
-  detections[3].label = forward;
-  detections[3].ground_x = 5.2;
-  detections[3].ground_y = 0.3;
+  detect(345, forward, 5.2, 0.3);
   paired.detection_paired = {false, false, true, false};
   show(11, forward, 340, forward);
   landmark(forward, 3, 340, 346, 350.0, 0.0);
