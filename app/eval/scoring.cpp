@@ -86,24 +86,23 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
 
 namespace {
 
+// The point (x, y) in `frame`'s own axes: x along its heading, y to its left.
+Pose2 relative_to(const Pose2& frame, double x, double y) { return compose(inverse(frame), Pose2{x, y, 0.0}); }
+
 // The marking's centre in the car's frame: metres ahead, metres to the left.
-std::array<double, 2> in_car_frame(const WorldMarking& m, const Pose2& car) {
-  const double dx = m.x - car.x, dy = m.y - car.y;
-  return {std::cos(car.yaw) * dx + std::sin(car.yaw) * dy, -std::sin(car.yaw) * dx + std::cos(car.yaw) * dy};
-}
+Pose2 in_car_frame(const WorldMarking& m, const Pose2& car) { return relative_to(car, m.x, m.y); }
 
 // From (x, y) to the marking, as score_landmarks measures it.
 double distance_to(const WorldMarking& m, double x, double y, Label crosswalk) {
-  const double dx = x - m.x, dy = y - m.y;
-  const double along = std::cos(m.heading) * dx + std::sin(m.heading) * dy;
-  double across = std::abs(-std::sin(m.heading) * dx + std::cos(m.heading) * dy);
+  const Pose2 p = relative_to(Pose2{m.x, m.y, m.heading}, x, y);
+  double across = std::abs(p.y);
   if (m.label == crosswalk) across = std::max(0.0, across - kCrosswalkReach_m);
-  return std::hypot(along, across);
+  return std::hypot(p.x, across);
 }
 
 bool in_region(const WorldMarking& m, const Pose2& car, const PassRegion& region) {
-  const auto [ahead, side] = in_car_frame(m, car);
-  return ahead >= region.ahead_min_m && ahead <= region.ahead_max_m && std::abs(side) <= region.side_m;
+  const Pose2 p = in_car_frame(m, car);
+  return p.x >= region.ahead_min_m && p.x <= region.ahead_max_m && std::abs(p.y) <= region.side_m;
 }
 
 }  // namespace
@@ -121,8 +120,7 @@ LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std:
       ++score.without_pose;
       continue;
     }
-    const Pose2 seen_from{l.car_x, l.car_y, l.car_yaw};
-    const Pose2 offset = compose(inverse(seen_from), Pose2{l.x, l.y, 0.0});
+    const Pose2 offset = relative_to(Pose2{l.car_x, l.car_y, l.car_yaw}, l.x, l.y);
     const Pose2 place = compose(route[l.last_frame], offset);
     double nearest = kLandmarkOnMarking_m;
     for (std::size_t m = 0; m < world.size(); ++m) {
@@ -220,11 +218,11 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
     for (FrameIndex frame = from; frame <= to; ++frame) {
       while (next_visible < end && truth[rows[next_visible]].frame < frame) ++next_visible;
       if (next_visible < end && truth[rows[next_visible]].frame == frame) continue;
-      const auto [ahead, side] = in_car_frame(marking, route[frame]);
+      const Pose2 seen = in_car_frame(marking, route[frame]);
       auto d = std::lower_bound(detections.begin(), detections.end(), frame, by_frame);
       for (; d != detections.end() && d->frame == frame; ++d) {
         const auto index = static_cast<std::size_t>(d - detections.begin());
-        if (taken[index] || std::hypot(d->ground_x - ahead, d->ground_y - side) > kSameMarking_m) continue;
+        if (taken[index] || std::hypot(d->ground_x - seen.x, d->ground_y - seen.y) > kSameMarking_m) continue;
         taken[index] = true;
         ++pass.detections;
       }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "eval/can_log.hpp"
+#include "engine/config.hpp"
 #include "eval/inputs.hpp"
 #include "perception/marking_classes.hpp"
 #include "replay/truth_judge.hpp"
@@ -122,8 +123,8 @@ inline constexpr double kPassGap_s = 5.0;
 // image cuts it: a pass reaches this long before and after its frames.
 inline constexpr double kPassMargin_s = 1.0;
 // The ECU's landmark tracker joins a detection to a track within this
-// distance on the ground (engine TrackerConfig's default).
-inline constexpr double kSameMarking_m = 1.5;
+// distance on the ground.
+inline constexpr double kSameMarking_m = TrackerConfig{}.association_radius_m;
 
 // A pass counts when the marking's centre lay in the detector's default
 // region in one of its frames, in the car's frame (frames.csv's pose), the

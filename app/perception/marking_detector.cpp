@@ -473,12 +473,13 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
     lane_segment_count_ = 0;
     return;
   }
-  const std::uint64_t over_caps = counters_.parts_dropped + counters_.candidates_dropped;
+  // Parts or candidates dropped at the caps in this frame make it cluttered.
+  const std::uint64_t dropped_before = counters_.parts_dropped + counters_.candidates_dropped;
   threshold();
   cut_line_junctions();
   const std::size_t part_count = label_parts();
   group_parts(part_count);
-  if (counters_.parts_dropped + counters_.candidates_dropped > over_caps)
+  if (counters_.parts_dropped + counters_.candidates_dropped > dropped_before)
     last_view_ = ViewKind::Cluttered;
   for (std::size_t i = 0; i < candidate_count_; ++i) classify(candidates_[i]);
   for (std::size_t i = 0; i < candidate_count_; ++i) {
