@@ -197,7 +197,13 @@ std::string class_name(Label label) {
   return label < perception::kMarkingClassCount ? std::string(perception::kMarkingClassNames[label]) : "?";
 }
 
-void print_landmarks(const LandmarkScore& l) {
+// "another class" or "on no marking", for a landmark the score lists.
+const char* misplacement(const LandmarkScore& l, const MisplacedLandmark& m) {
+  return l.marking_of[m.landmark] ? "another class" : "on no marking";
+}
+
+void print_landmarks(const LandmarkScore& l, const std::vector<LandmarkRecord>& landmarks,
+                     const std::vector<WorldMarking>& world) {
   const std::size_t placed = l.landmarks - l.without_pose;
   std::printf("\nLandmarks (the ECU's, placed by their offset from the car at their last frame; on a\n"
               "marking: the nearest within %.1f m, of a crosswalk anywhere across the road)\n",
@@ -210,6 +216,18 @@ void print_landmarks(const LandmarkScore& l) {
   if (l.distance_m.count > 0)
     std::printf("  %-34s %.2f / %.2f / %.2f m\n", "distance to it, median / p99 / max", l.distance_m.median,
                 l.distance_m.p99, l.distance_m.max);
+  constexpr std::size_t kListed = 20;
+  for (std::size_t i = 0; i < l.misplaced.size() && i < kListed; ++i) {
+    const MisplacedLandmark& m = l.misplaced[i];
+    const LandmarkRecord& r = landmarks[m.landmark];
+    std::printf("    %s: landmark %zu (%s), frames %u..%u, at (%.1f, %.1f) m", misplacement(l, m), m.landmark + 1,
+                class_name(r.label).c_str(), r.first_frame, r.last_frame, m.x, m.y);
+    if (m.nearest)
+      std::printf("; nearest marking %u (%s), %.2f m", world[*m.nearest].id,
+                  class_name(world[*m.nearest].label).c_str(), m.distance_m);
+    std::printf("\n");
+  }
+  if (l.misplaced.size() > kListed) std::printf("    ... %zu more (all in --json)\n", l.misplaced.size() - kListed);
 }
 
 void print_passes(const PassScore& p) {
@@ -250,7 +268,8 @@ void print_passes(const PassScore& p) {
 
 void write_json(const std::string& path, const Options& o, std::size_t frames, double length_m,
                 const EcuCanLog& log, const LoopScore& loops, const MarkingScore* markings,
-                const LandmarkScore* landmarks, const PassScore* passes) {
+                const LandmarkScore* landmarks, const std::vector<LandmarkRecord>& landmark_records,
+                const std::vector<WorldMarking>& world, const PassScore* passes) {
   std::FILE* f = open_output(path);
   const replay::Evaluation& e = loops.evaluation;
   std::fprintf(f, "{\"frames\":%zu,\"route_length_m\":%.1f,\"tolerance_m\":%g,", frames, length_m,
@@ -338,7 +357,19 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
                  "\"on_nothing\":%zu,",
                  l.landmarks, l.without_pose, l.right_label, l.wrong_label, l.on_nothing);
     json_spread(f, "distance_m", l.distance_m);
-    std::fputc('}', f);
+    std::fprintf(f, ",\"misplaced\":[");
+    for (std::size_t i = 0; i < l.misplaced.size(); ++i) {
+      const MisplacedLandmark& m = l.misplaced[i];
+      const LandmarkRecord& r = landmark_records[m.landmark];
+      std::fprintf(f, "%s{\"landmark\":%zu,\"label\":\"%s\",\"frames\":[%u,%u],\"at\":[%.3f,%.3f],\"judged\":\"%s\"",
+                   i ? "," : "", m.landmark + 1, class_name(r.label).c_str(), r.first_frame, r.last_frame, m.x, m.y,
+                   misplacement(l, m));
+      if (m.nearest)
+        std::fprintf(f, ",\"nearest\":{\"id\":%u,\"class\":\"%s\",\"distance_m\":%.3f}", world[*m.nearest].id,
+                     class_name(world[*m.nearest].label).c_str(), m.distance_m);
+      std::fputc('}', f);
+    }
+    std::fprintf(f, "]}");
   }
   if (passes != nullptr) {
     const PassScore& p = *passes;
@@ -542,7 +573,7 @@ int main(int argc, char** argv) {
     std::printf("\nMarkings: %s\n", marking_note.c_str());
   }
   if (have_landmarks)
-    print_landmarks(placed);
+    print_landmarks(placed, landmarks, world);
   else
     std::printf("\nLandmarks: %s\n", landmark_note.c_str());
   if (have_passes)
@@ -580,7 +611,7 @@ int main(int argc, char** argv) {
   std::printf("\npicture: %s, %s\n", o.svg.c_str(), o.png.c_str());
   if (!o.json.empty()) {
     write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr,
-               have_landmarks ? &placed : nullptr, have_passes ? &passes : nullptr);
+               have_landmarks ? &placed : nullptr, landmarks, world, have_passes ? &passes : nullptr);
     std::printf("figures: %s\n", o.json.c_str());
   }
   return 0;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <tuple>
 #include <unordered_map>
 
@@ -122,23 +123,27 @@ LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std:
     }
     const Pose2 offset = relative_to(Pose2{l.car_x, l.car_y, l.car_yaw}, l.x, l.y);
     const Pose2 place = compose(route[l.last_frame], offset);
-    double nearest = kLandmarkOnMarking_m;
+    MisplacedLandmark where{i, place.x, place.y, std::nullopt, std::numeric_limits<double>::infinity()};
     for (std::size_t m = 0; m < world.size(); ++m) {
       const double d = distance_to(world[m], place.x, place.y, crosswalk);
-      if (d <= nearest) {
-        nearest = d;
-        score.marking_of[i] = m;
+      if (d <= where.distance_m) {
+        where.distance_m = d;
+        where.nearest = m;
       }
     }
+    if (where.nearest && where.distance_m <= kLandmarkOnMarking_m) score.marking_of[i] = where.nearest;
     if (!score.marking_of[i]) {
       ++score.on_nothing;
+      score.misplaced.push_back(where);
       continue;
     }
-    distances.push_back(nearest);
-    if (world[*score.marking_of[i]].label == l.label)
+    distances.push_back(where.distance_m);
+    if (world[*score.marking_of[i]].label == l.label) {
       ++score.right_label;
-    else
+    } else {
       ++score.wrong_label;
+      score.misplaced.push_back(where);
+    }
   }
   score.distance_m = spread_of(std::move(distances));
   return score;

@@ -100,6 +100,16 @@ MarkingScore score_markings(const std::vector<VisibleMarking>& truth,
 inline constexpr double kLandmarkOnMarking_m = 2.0;
 inline constexpr double kCrosswalkReach_m = 8.0;
 
+// A placed landmark not on a marking of its label, with what a reader needs
+// to look it up: where it lies in the truth's world, and the nearest marking
+// at any distance.
+struct MisplacedLandmark {
+  std::size_t landmark = 0;  // its row among the landmarks file's, from 0
+  double x = 0.0, y = 0.0;
+  std::optional<std::size_t> nearest;  // index in `world`; none in an empty world
+  double distance_m = 0.0;             // to the nearest, as kLandmarkOnMarking_m is judged
+};
+
 struct LandmarkScore {
   std::size_t landmarks = 0;
   std::size_t without_pose = 0;  // no car pose (or a frame beyond the truth): not placed, not judged
@@ -110,6 +120,8 @@ struct LandmarkScore {
   std::vector<std::optional<std::size_t>> marking_of;
   // Per landmark, when placed: its distance from that place to the marking.
   Spread distance_m;
+  // On a marking of another class or on none, in the file's order.
+  std::vector<MisplacedLandmark> misplaced;
 };
 
 LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,

@@ -23,6 +23,7 @@ for pattern in "correct / wrong +1 / 1" "revisited 100 m stretches detected +1 o
     "detection recall \(any label\) +75.0 %" "detection precision \(any label\) +60.0 %" \
     "classification accuracy +66.7 %" "longest loop time \(any cycle\) +12.50 ms" \
     "^Landmarks \(the ECU's" "on a marking of their label +50.0 % \(1\)" "on no marking +1" \
+    "on no marking: landmark 2 \(ped\), frames 15\.\.19, at \(20\.0, 20\.0\) m; nearest marking 0 \(stop\), 34\.48 m" \
     "^Markings driven past" "passes +0 \(and 0 at the drive's start or end"; do
   grep -qE -- "$pattern" "$work/run.txt" || { echo "FAIL table lacks '$pattern'"; failures=$((failures + 1)); }
 done
@@ -32,6 +33,8 @@ done
 grep -q '"correct":1,"wrong":1' "$run/figures.json" || { echo "FAIL json lacks the loop counts"; failures=$((failures + 1)); }
 grep -q '"landmarks":{"count":2,"without_pose":0,"right_label":1,"wrong_label":0,"on_nothing":1' "$run/figures.json" ||
   { echo "FAIL json lacks the landmarks"; failures=$((failures + 1)); }
+grep -q '"misplaced":\[{"landmark":2,"label":"ped","frames":\[15,19\],"at":\[20.000,20.000\],"judged":"on no marking","nearest":{"id":0,"class":"stop","distance_m":34.482}}\]' "$run/figures.json" ||
+  { echo "FAIL json lacks the misplaced landmark"; failures=$((failures + 1)); }
 grep -q '"passes":{"count":0,"cut_by_drive_ends":0,"named_right":0' "$run/figures.json" ||
   { echo "FAIL json lacks the passes"; failures=$((failures + 1)); }
 if command -v python3 >/dev/null; then

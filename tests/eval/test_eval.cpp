@@ -326,6 +326,18 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
   CHECK(world[*placed.marking_of[0]].id == 1);
   CHECK(placed.distance_m.max == Approx(0.3).margin(1e-6));
   CHECK_FALSE(placed.marking_of[7].has_value());
+  // Listed for the reader: the leftturn on the stop line, and the ped on no
+  // marking, 10.8 m from the nearest one (4, rail at x = 120).
+  REQUIRE(placed.misplaced.size() == 2);
+  CHECK(placed.misplaced[0].landmark == 1);
+  CHECK(placed.misplaced[0].x == Approx(60.0).margin(1e-6));
+  CHECK(placed.misplaced[0].y == Approx(1.0).margin(1e-6));
+  REQUIRE(placed.misplaced[0].nearest.has_value());
+  CHECK(world[*placed.misplaced[0].nearest].id == 2);
+  CHECK(placed.misplaced[1].landmark == 7);
+  REQUIRE(placed.misplaced[1].nearest.has_value());
+  CHECK(world[*placed.misplaced[1].nearest].id == 4);
+  CHECK(placed.misplaced[1].distance_m == Approx(std::hypot(10.0, 4.0)).margin(1e-6));
 
   const PassScore score = score_passes(world, route, times, visible, detections, paired, landmarks, placed);
   REQUIRE(score.passes.size() == 8);
