@@ -125,6 +125,17 @@ int main(int argc, char** argv) {
     if (!markloop::perception::load_detector_config(config.calibration, options.detector, error))
       fail(error);
   }
+  // The detector reports nothing under its own threshold, so a gate set
+  // lower would let no more through: say so instead of ignoring it.
+  if (config.gate.min_score < options.detector.min_score) {
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "observation.min_score %g is below the detector's threshold %g (detector_min_score, %s): "
+                  "nothing under it is detected; lower detector_min_score too",
+                  double(config.gate.min_score), double(options.detector.min_score),
+                  config.calibration.empty() ? "the built-in default" : config.calibration.c_str());
+    fail(text);
+  }
   return config.file_mode() ? markloop::ecu::run_file_mode(options)
                             : markloop::ecu::run_live_mode(options);
 }

@@ -22,5 +22,8 @@ check "bad config line" 2 "bad.conf:2: expected 'key = value', got 'bogus line'"
 check "file mode half given" 2 "needs both a frame file \(--camera-file\) and a CAN log \(--can-in\)" -- \
   "${ecu[@]}" --camera-file "$work/none.y4m"
 check "print config" 0 "engine.k = 5" -- "${ecu[@]}" --set engine.k=5 --print-config
+check "gate under the detector's threshold" 2 \
+  "^markloop: observation.min_score 0.5 is below the detector's threshold 0.6 \(detector_min_score, the built-in default\)" -- \
+  "${ecu[@]}" --set observation.min_score=0.5
 
 finish
