@@ -44,8 +44,10 @@ struct RealtimeSettings {
 // placed poorly, and low classifier confidence is mostly clutter. The score
 // gate suits the model's calibration: the current one (weight decay 3e-3)
 // gives softer scores; 0.6 keeps every simulated drive free of false loops
-// (0.5 let one through on two-days), where 0.9 starved the cross-session
-// confirmation (README, "Measured figures").
+// (0.5 let one through on two-days, when the detector still reported down to
+// 0.5), where 0.9 starved the cross-session confirmation (README, "Measured
+// figures"). The gate may not lie below the detector's own threshold
+// (detector_min_score): nothing under it is detected, and main() refuses it.
 struct ObservationGate {
   float min_score = 0.6f;
   float min_range_m = 5.5f;   // ahead of the vehicle reference point
