@@ -197,6 +197,9 @@ std::string class_name(Label label) {
   return label < perception::kMarkingClassCount ? std::string(perception::kMarkingClassNames[label]) : "?";
 }
 
+// The table lists this many landmarks or passes of each kind; --json all.
+constexpr std::size_t kListed = 20;
+
 // "another class" or "on no marking", for a landmark the score lists.
 const char* misplacement(const LandmarkScore& l, const MisplacedLandmark& m) {
   return l.marking_of[m.landmark] ? "another class" : "on no marking";
@@ -216,7 +219,6 @@ void print_landmarks(const LandmarkScore& l, const std::vector<LandmarkRecord>& 
   if (l.distance_m.count > 0)
     std::printf("  %-34s %.2f / %.2f / %.2f m\n", "distance to it, median / p99 / max", l.distance_m.median,
                 l.distance_m.p99, l.distance_m.max);
-  constexpr std::size_t kListed = 20;
   for (std::size_t i = 0; i < l.misplaced.size() && i < kListed; ++i) {
     const MisplacedLandmark& m = l.misplaced[i];
     const LandmarkRecord& r = landmarks[m.landmark];
@@ -249,7 +251,6 @@ void print_passes(const PassScore& p) {
     std::printf("  %-14s %8zu %8zu %8s\n", class_name(static_cast<Label>(c)).c_str(), p.passes_of_class[c],
                 p.named_right_of_class[c], percent_text(p.named_right_of_class[c], p.passes_of_class[c]).c_str());
   }
-  constexpr std::size_t kListed = 20;
   std::size_t listed = 0, unlisted = 0;
   for (const MarkingPass& pass : p.passes) {
     if (pass.outcome == PassOutcome::NamedRight) continue;

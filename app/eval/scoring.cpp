@@ -131,7 +131,7 @@ LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std:
         where.nearest = m;
       }
     }
-    if (where.nearest && where.distance_m <= kLandmarkOnMarking_m) score.marking_of[i] = where.nearest;
+    if (where.distance_m <= kLandmarkOnMarking_m) score.marking_of[i] = where.nearest;
     if (!score.marking_of[i]) {
       ++score.on_nothing;
       score.misplaced.push_back(where);
