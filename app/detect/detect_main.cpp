@@ -172,8 +172,12 @@ int main(int argc, char** argv) {
 
   int failures = 0;
   for (const std::string& path : images) {
-    if (!std::filesystem::is_regular_file(path, ec)) {
-      std::fprintf(stderr, "markloop-detect: %s: no such file\n", path.c_str());
+    const std::filesystem::file_status status = std::filesystem::status(path, ec);
+    if (!std::filesystem::is_regular_file(status)) {
+      const char* what = std::filesystem::is_directory(status) ? "a directory, not an image"
+                         : std::filesystem::exists(status)     ? "not a regular file"
+                                                               : "no such file";
+      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), what);
       ++failures;
       continue;
     }
