@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <span>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
@@ -112,6 +113,15 @@ bool write_view(const markloop::perception::MarkingDetector& detector,
   }
 }
 
+// Why a path named as an image is not a regular file to read.
+std::string not_a_file_reason(const std::filesystem::file_status& status,
+                              const std::error_code& error) {
+  if (std::filesystem::is_directory(status)) return "a directory, not an image";
+  if (std::filesystem::exists(status)) return "not a regular file";
+  if (error && error != std::errc::no_such_file_or_directory) return error.message();  // no access
+  return "no such file";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -174,10 +184,8 @@ int main(int argc, char** argv) {
   for (const std::string& path : images) {
     const std::filesystem::file_status status = std::filesystem::status(path, ec);
     if (!std::filesystem::is_regular_file(status)) {
-      const char* what = std::filesystem::is_directory(status) ? "a directory, not an image"
-                         : std::filesystem::exists(status)     ? "not a regular file"
-                                                               : "no such file";
-      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), what);
+      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(),
+                   not_a_file_reason(status, ec).c_str());
       ++failures;
       continue;
     }
