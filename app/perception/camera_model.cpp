@@ -115,10 +115,23 @@ bool CameraModel::image_to_ground(const Eigen::Vector2d& pixel, Eigen::Vector2d&
 
 namespace {
 
+// An !!opencv-matrix of at most `max_values` values. OpenCV allocates a
+// matrix by its "rows" and "cols" before it reads "data": a damaged file could
+// ask for gigabytes (the fuzz target found "rows:=3" asking for 48 GB), so
+// the shape is checked first.
+bool read_small_matrix(const cv::FileNode& node, int max_values, cv::Mat& m) {
+  if (!node.isMap()) return false;
+  const cv::FileNode rows = node["rows"], cols = node["cols"];
+  if (!rows.isInt() || !cols.isInt()) return false;
+  const int r = static_cast<int>(rows), c = static_cast<int>(cols);
+  if (r < 1 || c < 1 || r > max_values || c > max_values || r * c > max_values) return false;
+  node >> m;
+  return !m.empty();
+}
+
 bool read_matrix(const cv::FileNode& node, int rows, int cols, double* out) {
   cv::Mat m;
-  node >> m;
-  if (m.empty()) return false;
+  if (!read_small_matrix(node, rows * cols, m)) return false;
   m.convertTo(m, CV_64F);
   if (m.total() != static_cast<std::size_t>(rows * cols)) return false;
   for (int i = 0; i < rows * cols; ++i) out[i] = m.at<double>(i);
@@ -176,8 +189,7 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
       return fail("camera_matrix needs positive, finite focal lengths");
     if (!fs["distortion_coefficients"].empty()) {
       cv::Mat d;
-      fs["distortion_coefficients"] >> d;
-      d.convertTo(d, CV_64F);
+      if (read_small_matrix(fs["distortion_coefficients"], 5, d)) d.convertTo(d, CV_64F);
       if (d.total() != 4 && d.total() != 5)
         return fail("distortion_coefficients must hold 4 or 5 values (k1 k2 p1 p2 [k3])");
       for (std::size_t i = 0; i < d.total(); ++i) k.distortion[i] = d.at<double>(static_cast<int>(i));

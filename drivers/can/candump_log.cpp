@@ -5,6 +5,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <limits>
 
 #include "platform/syscall.hpp"
 
@@ -75,15 +76,18 @@ bool parse_candump_line(std::string_view line, CandumpRecord& out,
   if (line.empty()) return fail(0, "empty line");
   if (line[pos] != '(') return fail(pos, "expected '(' starting the timestamp");
   ++pos;
-  // Seconds: 1..12 digits.
+  // Seconds: 1..10 digits, at most what nanoseconds in 64 bits hold (the
+  // year 2262): a timestamp beyond would overflow, not merely be wrong.
+  constexpr std::int64_t kMaxSeconds = std::numeric_limits<std::int64_t>::max() / 1'000'000'000 - 1;
   std::int64_t sec = 0;
   const std::size_t sec_start = pos;
   while (pos < line.size() && line[pos] >= '0' && line[pos] <= '9') {
-    if (pos - sec_start >= 12) return fail(pos, "timestamp seconds too long");
+    if (pos - sec_start >= 10) return fail(pos, "timestamp seconds too long");
     sec = sec * 10 + (line[pos] - '0');
     ++pos;
   }
   if (pos == sec_start) return fail(pos, "expected timestamp seconds (digits)");
+  if (sec > kMaxSeconds) return fail(sec_start, "timestamp seconds beyond the year 2262");
   if (pos >= line.size() || line[pos] != '.') return fail(pos, "expected '.' in the timestamp");
   ++pos;
   std::int64_t usec = 0;

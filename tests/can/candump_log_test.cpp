@@ -83,6 +83,8 @@ TEST_CASE("candump lines parse back to the same frame") {
   REQUIRE(parse_candump_line("(1.000000) can0 7ff#abcdef", r, e));  // lowercase accepted
   CHECK(r.frame.id == 0x7FF);
   CHECK(r.frame.data[2] == 0xEF);
+  REQUIRE(parse_candump_line("(9223372035.999999) can0 7ff#abcdef", r, e));  // the latest time
+  CHECK(r.frame.timestamp_ns == 9'223'372'035'999'999'000);
 }
 
 TEST_CASE("bad candump lines say where and what") {
@@ -93,6 +95,9 @@ TEST_CASE("bad candump lines say where and what") {
   CHECK(parse_error("(1700000000.1234567) vcan0 123#00") ==
         "19:expected ')' after 6 digits of microseconds");
   CHECK(parse_error("(x.123456) vcan0 123#00") == "2:expected timestamp seconds (digits)");
+  // Found by the fuzz target: nanoseconds past 2^63 overflowed.
+  CHECK(parse_error("(17000000011.000000) vcan0 123#00") == "12:timestamp seconds too long");
+  CHECK(parse_error("(9223372036.000000) vcan0 123#00") == "2:timestamp seconds beyond the year 2262");
   CHECK(parse_error("(1.123456)  vcan0 123#00") == "12:missing interface name");
   CHECK(parse_error("(1.123456) vcan0") == "17:expected ' ID#DATA' after the interface name");
   CHECK(parse_error("(1.123456) vcan0 12#00") ==

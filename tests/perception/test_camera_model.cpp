@@ -114,6 +114,25 @@ TEST_CASE("Bad calibration files are refused with the path and the reason") {
   write_file(bad_size, "%YAML:1.0\n---\nimage_width: -3\nimage_height: 480\n");
   CHECK_FALSE(load_camera_model(bad_size.string(), error));
   CHECK(error.find("out of range") != std::string::npos);
+
+  // Found by the fuzz target: OpenCV sizes a matrix by its rows and cols
+  // before reading its data, so a damaged shape asked for gigabytes.
+  const auto huge = scratch("huge_matrix.yaml");
+  write_file(huge,
+             "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+             "camera_matrix: !!opencv-matrix\n  rows: 100000\n  cols: 100000\n  dt: d\n"
+             "  data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\n");
+  CHECK_FALSE(load_camera_model(huge.string(), error));
+  CHECK(error.find("camera_matrix (3x3)") != std::string::npos);
+  const auto long_distortion = scratch("long_distortion.yaml");
+  write_file(long_distortion,
+             "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+             "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+             "  data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\n"
+             "distortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 1000000000\n  dt: d\n"
+             "  data: [ 0., 0., 0., 0. ]\n");
+  CHECK_FALSE(load_camera_model(long_distortion.string(), error));
+  CHECK(error.find("distortion_coefficients must hold 4 or 5") != std::string::npos);
 }
 
 TEST_CASE("The shipped default calibration is the built-in default") {

@@ -1,0 +1,38 @@
+// A camera calibration file (OpenCV YAML, markloop --calibration and
+// markloop-detect --camera): any bytes load or give an error naming the
+// file; a calibration that loads builds a detector that runs on a frame.
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <optional>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "fuzz_input.hpp"
+#include "perception/camera_model.hpp"
+#include "perception/marking_detector.hpp"
+
+using namespace markloop::perception;
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const markloop::fuzz::InputFile file(data, size, ".yaml");
+  std::string error;
+  const std::optional<CameraModel> camera = load_camera_model(file.path(), error);
+  if (!camera) {
+    if (error.rfind(file.path(), 0) != 0) std::abort();
+    return 0;
+  }
+  DetectorConfig config;
+  if (!load_detector_config(file.path(), config, error)) {
+    if (error.rfind(file.path(), 0) != 0) std::abort();
+    return 0;
+  }
+  MarkingDetector detector(*camera, config);
+  // A frame of the camera's size: grey road with a bright bar across it.
+  cv::Mat frame(camera->height(), camera->width(), CV_8UC1, cv::Scalar(90));
+  frame.rowRange(camera->height() * 3 / 4, camera->height() * 3 / 4 + 8).setTo(230);
+  for (const Detection& d : detector.detect(frame))
+    if (!(d.score >= 0.0f && d.score <= 1.0f)) std::abort();
+  return 0;
+}

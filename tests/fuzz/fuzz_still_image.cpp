@@ -1,0 +1,27 @@
+// Still images (markloop-detect): any bytes decode to a grey frame of the
+// camera's size or are refused with the reason, before any large
+// allocation (the header's size is checked first).
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "fuzz_input.hpp"
+#include "io/still_image.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const cv::Size camera(64, 48);
+  for (const char* suffix : {".png", ".jpg"}) {
+    const markloop::fuzz::InputFile file(data, size, suffix);
+    std::string error;
+    const cv::Mat grey = markloop::io::read_grey_still(file.path(), camera, error);
+    if (grey.empty()) {
+      if (error.empty()) std::abort();  // refused, and why
+    } else if (grey.size() != camera || grey.type() != CV_8UC1) {
+      std::abort();
+    }
+  }
+  return 0;
+}
