@@ -102,11 +102,13 @@ TEST_CASE("Bad calibration files are refused with the path and the reason") {
   CHECK_FALSE(load_camera_model(garbage.string(), error));
   CHECK(error.find("garbage.yaml") != std::string::npos);
 
+  // A pinhole camera's size and intrinsics, without its mounting.
+  const std::string intrinsics_only =
+      "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+      "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+      "  data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\n";
   const auto no_mount = scratch("no_mount.yaml");
-  write_file(no_mount,
-             "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
-             "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
-             "  data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\n");
+  write_file(no_mount, intrinsics_only);
   CHECK_FALSE(load_camera_model(no_mount.string(), error));
   CHECK(error.find("mount_height") != std::string::npos);
 
@@ -126,11 +128,9 @@ TEST_CASE("Bad calibration files are refused with the path and the reason") {
   CHECK(error.find("camera_matrix (3x3)") != std::string::npos);
   const auto long_distortion = scratch("long_distortion.yaml");
   write_file(long_distortion,
-             "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
-             "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
-             "  data: [ 500., 0., 320., 0., 500., 240., 0., 0., 1. ]\n"
-             "distortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 1000000000\n  dt: d\n"
-             "  data: [ 0., 0., 0., 0. ]\n");
+             intrinsics_only +
+                 "distortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 1000000000\n  dt: d\n"
+                 "  data: [ 0., 0., 0., 0. ]\n");
   CHECK_FALSE(load_camera_model(long_distortion.string(), error));
   CHECK(error.find("distortion_coefficients must hold 4 or 5") != std::string::npos);
 }
