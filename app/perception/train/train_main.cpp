@@ -586,9 +586,11 @@ struct Score {
   int partial_right = 0, partial_wrong = 0;  // cut by the view's near edge, reported
 };
 
+// `list`: print what the diagnostics ask for (MARKLOOP_TRAIN_LIST_*); one
+// judgement of the several thresholds does, so each line comes once.
 void judge(const ImageSet& set, int image_index, const std::vector<const Sample*>& detections,
            const std::vector<int>& predicted, const std::vector<bool>& piece, float min_score,
-           const std::vector<float>& scores, Score& score) {
+           const std::vector<float>& scores, bool list, Score& score) {
   const auto& image = set.images[image_index];
   std::vector<bool> matched(image.annotations.size(), false);
   for (std::size_t a = 0; a < image.annotations.size(); ++a) {
@@ -636,7 +638,7 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
       ++score.wrong_label;
     else
       ++score.on_nothing;
-    if (std::getenv("MARKLOOP_TRAIN_LIST_FALSE") != nullptr)
+    if (list && std::getenv("MARKLOOP_TRAIN_LIST_FALSE") != nullptr)
       std::printf("  false: %s %s %s at (%.0f, %.0f)%s\n", set.dir.c_str(), image.name.c_str(),
                   label.c_str(), static_cast<double>(s.centre[0]), static_cast<double>(s.centre[1]),
                   s.partial ? " (partial)" : "");
@@ -657,7 +659,7 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
         if (predicted[i] != kRejectClass) break;
       }
     ++score.confusion[image.annotations[a].label + " -> " + seen];
-    if (std::getenv("MARKLOOP_TRAIN_LIST_MISSED") != nullptr)
+    if (list && std::getenv("MARKLOOP_TRAIN_LIST_MISSED") != nullptr)
       std::printf("  not found: %s %s -> %s%s%s\n", image.name.c_str(),
                   image.annotations[a].label.c_str(), seen.c_str(), detail,
                   image.in_range[a] ? " (in range)" : "");
@@ -768,7 +770,7 @@ void evaluate(const ImageSet& set, const ClassifySample& classify_sample,
     for (std::size_t i = 0; i < set.images.size(); ++i)
       if (use_image[i])
         judge(set, static_cast<int>(i), per_image[i], predicted[i], piece[i], min_scores[t],
-              confidence[i], scores[t]);
+              confidence[i], t == 0, scores[t]);
 }
 
 ClassifySample by_model(const MlpModel& model) {
