@@ -16,17 +16,19 @@ cd "$(dirname "$0")/../.."
 seconds=60
 if [ "${1:-}" = --seconds ]; then seconds=$2; shift 2; fi
 targets=("$@")
-[ "${#targets[@]}" -gt 0 ] || targets=(y4m candump_line ecu_config map_file calibration text_inputs still_image)
 command -v clang++ >/dev/null || { echo "run-fuzzers: clang++ not found (apt install clang)" >&2; exit 1; }
 cmake --preset fuzz >/dev/null
 cmake --build --preset fuzz
+bin_dir=build/fuzz/tests/fuzz
+# Each target's build writes NAME.seeds: the project's own files of its kind
+# (tests/fuzz/CMakeLists.txt, the one list of targets and seeds).
+if [ "${#targets[@]}" -eq 0 ]; then
+  for seeds in "$bin_dir"/markloop-fuzz-*.seeds; do
+    name=${seeds##*/markloop-fuzz-}
+    targets+=("${name%.seeds}")
+  done
+fi
 
-seeds_of() {  # the project's own files of a target's kind
-  case "$1" in
-    ecu_config) echo app/ecu/markloop.conf ;;
-    calibration) echo app/cameras ;;
-  esac
-}
 max_len_of() {
   case "$1" in
     candump_line) echo 512 ;;
@@ -38,13 +40,16 @@ max_len_of() {
 status=0
 printf '%-14s %10s %8s %8s %s\n' target runs coverage corpus result
 for t in "${targets[@]}"; do
-  bin=build/fuzz/tests/fuzz/markloop-fuzz-$t
-  [ -x "$bin" ] || { echo "run-fuzzers: no target '$t'" >&2; exit 2; }
+  bin=$bin_dir/markloop-fuzz-$t
+  if [ ! -x "$bin" ] || [ ! -f "$bin.seeds" ]; then echo "run-fuzzers: no target '$t'" >&2; exit 2; fi
   work=build/fuzz/corpus/$t
   crashes=build/fuzz/crashes/$t
   mkdir -p "$work" "$crashes"
   # libFuzzer reads corpus directories only: the project's files are copied in.
-  for seed in $(seeds_of "$t"); do cp -r "$seed"/. "$work"/ 2>/dev/null || cp "$seed" "$work"/; done
+  while IFS= read -r seed; do
+    [ -n "$seed" ] || continue
+    if [ -d "$seed" ]; then cp -r "$seed"/. "$work"/; else cp "$seed" "$work"/; fi
+  done <"$bin.seeds"
   log=build/fuzz/$t.log
   result=ok
   "$bin" -max_total_time="$seconds" -max_len="$(max_len_of "$t")" -rss_limit_mb=2048 -timeout=10 \
