@@ -12,7 +12,8 @@
 # --weight-decay 1e-3, ...); MARKLOOP_TRAIN_LIST_MISSED=1 and the other
 # diagnostics of markloop-train --help work as there. It runs build/train's
 # markloop-train, as train-model.sh does (MARKLOOP_BUILD=build/host: the host
-# preset's).
+# preset's). MARKLOOP_TRAIN_DATA=DIR reads the rendered sets from DIR instead
+# of build/train-data (sets rendered another way, for an experiment).
 set -eu
 case "${1:-}" in
   -h|--help) sed -n '2,/^set -eu/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
@@ -22,7 +23,7 @@ case "${1:-}" in
   ''|-*) ;;
   *) REAL=$1; shift ;;
 esac
-DATA=build/train-data
+DATA=${MARKLOOP_TRAIN_DATA:-build/train-data}
 # shellcheck source=app/perception/train/recipe.sh
 . "$(dirname "$0")/recipe.sh"
 TRAIN=$BUILD/app/perception/train/markloop-train
