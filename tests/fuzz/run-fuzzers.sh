@@ -20,8 +20,8 @@ command -v clang++ >/dev/null || { echo "run-fuzzers: clang++ not found (apt ins
 cmake --preset fuzz >/dev/null
 cmake --build --preset fuzz
 bin_dir=build/fuzz/tests/fuzz
-# Each target's build writes NAME.seeds: the project's own files of its kind
-# (tests/fuzz/CMakeLists.txt, the one list of targets and seeds).
+# Each target's build writes NAME.seeds (the project's own files of its kind)
+# and NAME.max_len (tests/fuzz/CMakeLists.txt, the one list of targets).
 if [ "${#targets[@]}" -eq 0 ]; then
   for seeds in "$bin_dir"/markloop-fuzz-*.seeds; do
     name=${seeds##*/markloop-fuzz-}
@@ -29,19 +29,11 @@ if [ "${#targets[@]}" -eq 0 ]; then
   done
 fi
 
-max_len_of() {
-  case "$1" in
-    candump_line) echo 512 ;;
-    map_file|y4m|still_image) echo 8192 ;;
-    *) echo 4096 ;;
-  esac
-}
-
 status=0
 printf '%-14s %10s %8s %8s %s\n' target runs coverage corpus result
 for t in "${targets[@]}"; do
   bin=$bin_dir/markloop-fuzz-$t
-  if [ ! -x "$bin" ] || [ ! -f "$bin.seeds" ]; then echo "run-fuzzers: no target '$t'" >&2; exit 2; fi
+  if [ ! -x "$bin" ] || [ ! -f "$bin.seeds" ] || [ ! -f "$bin.max_len" ]; then echo "run-fuzzers: no target '$t'" >&2; exit 2; fi
   work=build/fuzz/corpus/$t
   crashes=build/fuzz/crashes/$t
   mkdir -p "$work" "$crashes"
@@ -52,7 +44,7 @@ for t in "${targets[@]}"; do
   done <"$bin.seeds"
   log=build/fuzz/$t.log
   result=ok
-  "$bin" -max_total_time="$seconds" -max_len="$(max_len_of "$t")" -rss_limit_mb=2048 -timeout=10 \
+  "$bin" -max_total_time="$seconds" -max_len="$(cat "$bin.max_len")" -rss_limit_mb=2048 -timeout=10 \
     -artifact_prefix="$crashes/" -print_final_stats=1 "$work" "tests/fuzz/corpus/$t" \
     >"$log" 2>&1 || { result="FAILED: $(ls "$crashes" | head -1) (log $log)"; status=1; }
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
