@@ -1,4 +1,5 @@
 #include "platform/os.hpp"
+#include "platform/retry_eintr.hpp"
 
 #include <fcntl.h>
 #include <pthread.h>
@@ -22,13 +23,7 @@ namespace markloop::platform {
 
 namespace {
 
-template <typename F>
-auto retry_eintr(F&& f) noexcept {
-  for (;;) {
-    auto r = f();
-    if (r != -1 || errno != EINTR) return r;
-  }
-}
+using detail::retry_eintr;
 
 std::error_code result(int r) noexcept { return r < 0 ? last_error() : std::error_code{}; }
 

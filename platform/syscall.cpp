@@ -1,4 +1,5 @@
 #include "platform/syscall.hpp"
+#include "platform/retry_eintr.hpp"
 
 #include <poll.h>
 #include <fcntl.h>
@@ -15,14 +16,7 @@ namespace markloop::platform {
 
 namespace {
 
-// Calls `f` until it does not fail with EINTR. `f` returns -1 on failure.
-template <typename F>
-auto retry_eintr(F&& f) noexcept {
-  for (;;) {
-    auto r = f();
-    if (r != -1 || errno != EINTR) return r;
-  }
-}
+using detail::retry_eintr;
 
 std::int64_t monotonic_ms() noexcept {
   timespec ts{};

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <limits>
 
+#include "platform/os.hpp"
 #include "platform/syscall.hpp"
 
 namespace markloop::can {
@@ -170,12 +171,9 @@ std::error_code CandumpLogWriter::open(const char* path, std::string_view interf
   (void)close();
   if (path == nullptr || !valid_interface(interface))
     return std::make_error_code(std::errc::invalid_argument);
-  const int flags = O_WRONLY | O_CREAT | O_CLOEXEC | (append ? O_APPEND : O_TRUNC);
+  const int flags = O_WRONLY | O_CREAT | (append ? O_APPEND : O_TRUNC);
   int fd = -1;
-  do {
-    fd = ::open(path, flags, 0644);
-  } while (fd < 0 && errno == EINTR);
-  if (fd < 0) return platform::last_error();
+  if (const std::error_code ec = platform::sys_open_mode(path, flags, 0644, fd)) return ec;
   fd_.reset(fd);
   interface_.fill('\0');
   std::memcpy(interface_.data(), interface.data(), interface.size());
