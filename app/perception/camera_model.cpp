@@ -7,6 +7,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/core/persistence.hpp>
 
+#include "perception/storage_file.hpp"
+
 namespace markloop::perception {
 namespace {
 
@@ -150,11 +152,9 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
   // FileStorage reports syntax errors by throwing cv::Exception; they stop
   // here, at start-up, never in the loop.
   try {
-    cv::FileStorage fs(path, cv::FileStorage::READ);
-    if (!fs.isOpened()) {
-      error = path + ": cannot open as an OpenCV YAML/XML calibration file";
-      return std::nullopt;
-    }
+    std::optional<cv::FileStorage> storage = open_storage_file(path, error);
+    if (!storage) return std::nullopt;
+    cv::FileStorage& fs = *storage;
     const auto fail = [&](const std::string& what) {
       error = path + ": " + what;
       return std::nullopt;

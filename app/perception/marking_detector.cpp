@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "perception/marking_classifier.hpp"
+#include "perception/storage_file.hpp"
 
 namespace markloop::perception {
 namespace {
@@ -997,11 +998,9 @@ bool MarkingDetector::beyond_region(const Candidate& candidate) const {
 
 bool load_detector_config(const std::string& path, DetectorConfig& config, std::string& error) {
   try {
-    cv::FileStorage fs(path, cv::FileStorage::READ);
-    if (!fs.isOpened()) {
-      error = path + ": cannot open as an OpenCV YAML/XML file";
-      return false;
-    }
+    std::optional<cv::FileStorage> storage = open_storage_file(path, error);
+    if (!storage) return false;
+    cv::FileStorage& fs = *storage;
     DetectorConfig c = config;
     struct Key {
       const char* name;

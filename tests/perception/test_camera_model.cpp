@@ -8,6 +8,8 @@
 #include <catch2/catch_test_macros.hpp>
 
 #include "perception/camera_model.hpp"
+#include "perception/marking_detector.hpp"
+#include "perception/storage_file.hpp"
 
 using namespace markloop::perception;
 using Catch::Approx;
@@ -133,6 +135,21 @@ TEST_CASE("Bad calibration files are refused with the path and the reason") {
                  "  data: [ 0., 0., 0., 0. ]\n");
   CHECK_FALSE(load_camera_model(long_distortion.string(), error));
   CHECK(error.find("distortion_coefficients must hold 4 or 5") != std::string::npos);
+
+  // Found by the fuzz target: OpenCV 4.6's YAML reader never returns on a
+  // line beginning with "----" followed by more lines. Refused before it.
+  const auto dashes = scratch("dashes.yaml");
+  write_file(dashes, "%YAML:1.0\n----ima0\n----imagewt\ngewt\n");
+  CHECK_FALSE(load_camera_model(dashes.string(), error));
+  CHECK(error.find("dashes.yaml:2: a line beginning with \"----\"") != std::string::npos);
+  DetectorConfig config;
+  CHECK_FALSE(load_detector_config(dashes.string(), config, error));
+  CHECK(error.find("dashes.yaml:2:") != std::string::npos);
+
+  const auto too_large = scratch("too_large.yaml");
+  write_file(too_large, "%YAML:1.0\n---\n" + std::string(kMaxStorageFileBytes, '#') + "\n");
+  CHECK_FALSE(load_camera_model(too_large.string(), error));
+  CHECK(error.find("too_large.yaml: larger than 1 MiB") != std::string::npos);
 }
 
 TEST_CASE("The shipped default calibration is the built-in default") {
