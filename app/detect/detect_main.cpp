@@ -49,7 +49,9 @@ constexpr const char* kUsage =
     "                  its size, bright paint in red, each candidate's box with its\n"
     "                  class and score: green reported, yellow a marking class not\n"
     "                  reported (C: cut by the view's edge; or below the score, a\n"
-    "                  piece of a larger marking, beyond the region), grey rejected\n";
+    "                  piece of a larger marking, beyond the region), grey rejected;\n"
+    "                  J: a word split by its I (a letter taken for a line),\n"
+    "                  its candidates reported together\n";
 
 // JSON string escaping for file names.
 std::string json_string(const std::string& s) {
@@ -86,9 +88,17 @@ bool write_view(const markloop::perception::MarkingDetector& detector,
         pixel = {static_cast<std::uint8_t>(pixel[0] / 3), static_cast<std::uint8_t>(pixel[1] / 3), 255};
       }
   cv::resize(view, view, {}, kScale, kScale, cv::INTER_NEAREST);
-  for (const Candidate& c : detector.candidates()) {
+  const auto candidates = detector.candidates();
+  const auto reported_by = detector.reported_by();
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const Candidate& c = candidates[i];
+    // A word split by its I is reported as one, where its first candidate says.
+    const auto first = static_cast<std::size_t>(reported_by[i]);
+    bool joined = first != i;
+    for (std::size_t j = 0; j < candidates.size() && !joined; ++j)
+      joined = j != i && static_cast<std::size_t>(reported_by[j]) == i;
     Detection where{};
-    detector.locate(c, where);
+    detector.locate(joined ? joined_candidate(candidates, reported_by, first) : c, where);
     const bool marking = c.predicted != kRejectClass;
     bool was_reported = false;
     for (const Detection& d : reported)
@@ -100,10 +110,10 @@ bool write_view(const markloop::perception::MarkingDetector& detector,
     const cv::Point top_left(c.col0 * kScale, c.row0 * kScale);
     cv::rectangle(view, top_left, {(c.col1 + 1) * kScale - 1, (c.row1 + 1) * kScale - 1}, colour, 1);
     char text[48];
-    std::snprintf(text, sizeof text, "%s %.2f%s",
+    std::snprintf(text, sizeof text, "%s %.2f%s%s",
                   marking ? std::string(marking_class_name(static_cast<markloop::Label>(c.predicted))).c_str()
                           : "reject",
-                  static_cast<double>(c.score), c.clipped ? " C" : "");
+                  static_cast<double>(c.score), c.clipped ? " C" : "", joined ? " J" : "");
     cv::putText(view, text, top_left + cv::Point(0, -3), cv::FONT_HERSHEY_PLAIN, 0.8, colour, 1);
   }
   try {

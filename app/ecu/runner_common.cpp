@@ -113,19 +113,22 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
     const perception::DetectorCounters& d = ecu.detector().counters();
     std::fprintf(stderr,
                  "markloop: detector %llu parts, %llu lane lines, %llu candidates, %llu rejected, "
-                 "%llu below score, %llu pieces of larger ones, %llu cut by the view's edge, "
+                 "%llu below score, %llu pieces of larger ones, %llu joined to a word's other "
+                 "half across its I, %llu cut by the view's edge, "
                  "%llu beyond the region, %llu bad frames, %llu flat, %llu noisy and %llu "
-                 "cluttered views (%llu detections withheld), %llu parts and %llu candidates over "
-                 "the caps; horizon measured in %llu frames (not in %llu), moved %llu times, now "
-                 "%d rows\n",
+                 "cluttered views (%llu detections withheld), %llu parts, %llu candidates and "
+                 "%llu letter strokes over the caps; horizon measured in %llu frames (not in "
+                 "%llu), moved %llu times, now %d rows\n",
                  (unsigned long long)d.parts, (unsigned long long)d.lane_lines,
                  (unsigned long long)d.candidates, (unsigned long long)d.rejected,
                  (unsigned long long)d.low_score, (unsigned long long)d.pieces,
-                 (unsigned long long)d.clipped, (unsigned long long)d.beyond_region,
+                 (unsigned long long)d.joined, (unsigned long long)d.clipped,
+                 (unsigned long long)d.beyond_region,
                  (unsigned long long)d.bad_frames, (unsigned long long)d.flat_frames,
                  (unsigned long long)d.noisy_frames, (unsigned long long)d.cluttered_frames,
                  (unsigned long long)d.detections_withheld, (unsigned long long)d.parts_dropped,
-                 (unsigned long long)d.candidates_dropped, (unsigned long long)d.horizon_measured,
+                 (unsigned long long)d.candidates_dropped, (unsigned long long)d.strokes_dropped,
+                 (unsigned long long)d.horizon_measured,
                  (unsigned long long)d.horizon_unmeasured, (unsigned long long)d.horizon_moves,
                  ecu.detector().horizon_shift());
     const EngineCounters& e = ecu.engine().counters();

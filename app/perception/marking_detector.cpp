@@ -59,6 +59,15 @@ int find_root(std::int32_t* parent, int i) {
   return i;
 }
 
+// Grows `into` to cover `from` (parts' and candidates' boxes alike).
+template <typename Into, typename From>
+void grow_box(Into& into, const From& from) {
+  into.col0 = std::min(into.col0, from.col0);
+  into.col1 = std::max(into.col1, from.col1);
+  into.row0 = std::min(into.row0, from.row0);
+  into.row1 = std::max(into.row1, from.row1);
+}
+
 void unite(std::int32_t* parent, int a, int b) {
   a = find_root(parent, a);
   b = find_root(parent, b);
@@ -483,8 +492,21 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
   if (counters_.parts_dropped + counters_.candidates_dropped > dropped_before)
     last_view_ = ViewKind::Cluttered;
   for (std::size_t i = 0; i < candidate_count_; ++i) classify(candidates_[i]);
+  const std::size_t joined =
+      join_across_strokes(candidates(), {reported_by_.data(), candidate_count_});
+  counters_.joined += joined;
   for (std::size_t i = 0; i < candidate_count_; ++i) {
-    const Candidate& candidate = candidates_[i];
+    if (reported_by_[i] != static_cast<std::int32_t>(i)) {  // in a word's detection
+      if (candidates_[i].predicted == kRejectClass) ++counters_.rejected;  // a broken letter
+      continue;
+    }
+    // The first of a word's candidates split by its I reports the word.
+    bool first_of_word = false;
+    for (std::size_t j = 0; j < candidate_count_ && joined > 0 && !first_of_word; ++j)
+      first_of_word = j != i && reported_by_[j] == static_cast<std::int32_t>(i);
+    Candidate word;  // filled only for a word: a copy, as rare as they are
+    if (first_of_word) word = joined_candidate(candidates(), {reported_by_.data(), candidate_count_}, i);
+    const Candidate& candidate = first_of_word ? word : candidates_[i];
     if (candidate.predicted == kRejectClass) {
       ++counters_.rejected;
       continue;
@@ -774,10 +796,7 @@ std::size_t MarkingDetector::label_parts() {
     if (root == label) continue;
     Part& into = label_box_[root];
     const Part& from = label_box_[label];
-    into.col0 = std::min(into.col0, from.col0);
-    into.col1 = std::max(into.col1, from.col1);
-    into.row0 = std::min(into.row0, from.row0);
-    into.row1 = std::max(into.row1, from.row1);
+    grow_box(into, from);
     into.area += from.area;
     Moments& sums = label_moments_[root];
     const Moments& more = label_moments_[label];
@@ -789,6 +808,7 @@ std::size_t MarkingDetector::label_parts() {
   }
   const auto& region = config_.region;
   std::size_t count = 0;
+  stroke_count_ = 0;
   for (int label = 0; label < next; ++label) {
     if (parent[label] != label) continue;
     const Part& box = label_box_[label];
@@ -806,9 +826,13 @@ std::size_t MarkingDetector::label_parts() {
     // A sparse part is a line or kerb unless it is a closed outline.
     const bool sparse = width >= config_.sparse_min_size_m && length >= config_.sparse_min_size_m &&
                         fill < config_.sparse_max_fill;
-    if ((width <= config_.line_max_width_m && length >= config_.line_min_length_m) || oblique_line ||
-        (sparse && !encloses_road(label, box))) {
+    const bool straight_line = width <= config_.line_max_width_m && length >= config_.line_min_length_m;
+    if (straight_line || oblique_line || (sparse && !encloses_road(label, box))) {
       ++counters_.lane_lines;
+      if ((straight_line || oblique_line) && length <= config_.group_max_part_m) {
+        if (stroke_count_ < kMaxStrokes) strokes_[stroke_count_++] = box;
+        else ++counters_.strokes_dropped;
+      }
       continue;
     }
     if (length > config_.max_marking_length_m || width > config_.max_marking_width_m) {
@@ -898,13 +922,11 @@ void MarkingDetector::group_parts(std::size_t part_count) {
       c.col1 = p.col1;
       c.row1 = p.row1;
       c.parts = 1;
+      c.across_stroke = -1;
       continue;
     }
     Candidate& c = candidates_[slot];
-    c.col0 = std::min(c.col0, p.col0);
-    c.row0 = std::min(c.row0, p.row0);
-    c.col1 = std::max(c.col1, p.col1);
-    c.row1 = std::max(c.row1, p.row1);
+    grow_box(c, p);
     ++c.parts;
   }
   // Groups grown too large are not markings (the edges of cars, shadows).
@@ -924,6 +946,94 @@ void MarkingDetector::group_parts(std::size_t part_count) {
   }
   candidate_count_ = kept;
   counters_.candidates += kept;
+  link_across_strokes(gap_cols);
+}
+
+void MarkingDetector::link_across_strokes(int gap_cols) {
+  const auto rows_of = [](const auto& box) { return box.row1 - box.row0 + 1; };
+  for (std::size_t s = 0; s < stroke_count_; ++s) {
+    const Part& stroke = strokes_[s];
+    // A letter's group beside the stroke: close across, along the stroke's
+    // whole length, and at most twice as long (its group may have taken in
+    // paint just beyond the letters).
+    const auto beside = [&](const Candidate& c) {
+      const int shared = std::min(c.row1, stroke.row1) - std::max(c.row0, stroke.row0) + 1;
+      return static_cast<float>(shared) >= config_.stroke_min_shared * static_cast<float>(rows_of(stroke)) &&
+             2 * shared >= rows_of(c);
+    };
+    int left = -1, right = -1;
+    for (std::size_t i = 0; i < candidate_count_; ++i) {
+      const Candidate& c = candidates_[i];
+      if (!beside(c)) continue;
+      if (c.col1 < stroke.col0 && stroke.col0 - c.col1 - 1 <= gap_cols) left = static_cast<int>(i);
+      if (c.col0 > stroke.col1 && c.col0 - stroke.col1 - 1 <= gap_cols) right = static_cast<int>(i);
+    }
+    if (left >= 0 && right >= 0) candidates_[static_cast<std::size_t>(left)].across_stroke = right;
+  }
+}
+
+std::size_t join_across_strokes(std::span<const Candidate> candidates,
+                                std::span<std::int32_t> reported_by) {
+  const std::size_t n = std::min({candidates.size(), reported_by.size(), kMaxCandidates});
+  const auto valid = [&](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
+  // The next candidate of a marking class across the strokes to the right
+  // of `i`, passing over at most kMaxBrokenLetters rejected ones (a letter
+  // broken by a shadow: its pieces taken for no marking); -1 none.
+  constexpr int kMaxBrokenLetters = 2;
+  const auto next_marking = [&](std::size_t i) {
+    int next = candidates[i].across_stroke;
+    for (int hops = 0; valid(next) && candidates[static_cast<std::size_t>(next)].predicted == kRejectClass;
+         ++hops)
+      next = hops < kMaxBrokenLetters ? candidates[static_cast<std::size_t>(next)].across_stroke : -1;
+    return valid(next) ? next : -1;
+  };
+  const auto links_alike = [&](std::size_t i, int next) {
+    return next >= 0 && candidates[i].predicted != kRejectClass &&
+           candidates[static_cast<std::size_t>(next)].predicted == candidates[i].predicted;
+  };
+  for (std::size_t i = 0; i < n; ++i) reported_by[i] = static_cast<std::int32_t>(i);
+  // A word starts where no candidate classified alike links to it.
+  std::array<bool, kMaxCandidates> linked_to{};
+  for (std::size_t i = 0; i < n; ++i)
+    if (const int next = next_marking(i); links_alike(i, next)) linked_to[static_cast<std::size_t>(next)] = true;
+  std::size_t joined = 0;
+  for (std::size_t first = 0; first < n; ++first) {
+    if (linked_to[first]) continue;
+    for (std::size_t at = first;;) {
+      const int next = next_marking(at);
+      if (!links_alike(first, next) || reported_by[static_cast<std::size_t>(next)] != next) break;
+      // The broken letters on the way belong to the word too.
+      for (int piece = candidates[at].across_stroke; piece != next;
+           piece = candidates[static_cast<std::size_t>(piece)].across_stroke)
+        if (reported_by[static_cast<std::size_t>(piece)] == piece)
+          reported_by[static_cast<std::size_t>(piece)] = static_cast<std::int32_t>(first);
+      reported_by[static_cast<std::size_t>(next)] = static_cast<std::int32_t>(first);
+      ++joined;
+      at = static_cast<std::size_t>(next);
+    }
+  }
+  return joined;
+}
+
+Candidate joined_candidate(std::span<const Candidate> candidates,
+                           std::span<const std::int32_t> reported_by, std::size_t first) {
+  Candidate c = candidates[first];
+  const float metres_per_row = c.length_m / static_cast<float>(c.row1 - c.row0 + 1);
+  const float metres_per_col = c.width_m / static_cast<float>(c.col1 - c.col0 + 1);
+  bool cut_elsewhere = c.clipped && !c.clipped_near_only;
+  for (std::size_t j = 0; j < candidates.size() && j < reported_by.size(); ++j) {
+    if (j == first || reported_by[j] != static_cast<std::int32_t>(first)) continue;
+    const Candidate& other = candidates[j];
+    grow_box(c, other);
+    c.parts += other.parts;
+    if (other.predicted == c.predicted) c.score = std::max(c.score, other.score);
+    c.clipped = c.clipped || other.clipped;
+    cut_elsewhere = cut_elsewhere || (other.clipped && !other.clipped_near_only);
+  }
+  c.length_m = metres_per_row * static_cast<float>(c.row1 - c.row0 + 1);
+  c.width_m = metres_per_col * static_cast<float>(c.col1 - c.col0 + 1);
+  c.clipped_near_only = c.clipped && !cut_elsewhere;
+  return c;
 }
 
 bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index) {
@@ -931,11 +1041,14 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
   for (std::size_t j = 0; j < candidates.size(); ++j) {
     const Candidate& outer = candidates[j];
     if (j == index || (outer.predicted != c.predicted && !outer.clipped)) continue;
-    const bool inside = outer.col0 <= c.col0 && c.col1 <= outer.col1 && outer.row0 <= c.row0 &&
-                        c.row1 <= outer.row1;
-    const bool larger = (outer.col1 - outer.col0) * (outer.row1 - outer.row0) >
-                        (c.col1 - c.col0) * (c.row1 - c.row0);
-    if (inside && larger) return true;
+    const int shared_cols = std::min(c.col1, outer.col1) - std::max(c.col0, outer.col0) + 1;
+    const int shared_rows = std::min(c.row1, outer.row1) - std::max(c.row0, outer.row0) + 1;
+    if (shared_cols <= 0 || shared_rows <= 0) continue;
+    const int area = (c.col1 - c.col0 + 1) * (c.row1 - c.row0 + 1);
+    const bool mostly_inside =
+        static_cast<float>(shared_cols * shared_rows) >= kPieceMinInside * static_cast<float>(area);
+    const bool larger = (outer.col1 - outer.col0 + 1) * (outer.row1 - outer.row0 + 1) > area;
+    if (mostly_inside && larger) return true;
   }
   return false;
 }

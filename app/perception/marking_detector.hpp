@@ -110,6 +110,17 @@ struct DetectorConfig {
   float group_gap_along_m = 0.6f;
   float group_gap_across_m = 0.35f;
   float group_max_part_m = 3.2f;
+  // A letter that is one straight stroke (the I of XING and BIKE; an N's
+  // upright when a shadow breaks its diagonal) is set apart as a line, and
+  // the word falls in two candidates, each classified as the word (so the
+  // model was trained), which would be two landmarks a metre or two apart.
+  // A part set apart as a line but no longer than group_max_part_m, with a
+  // candidate within group_gap_across_m on either side, each beside at
+  // least stroke_min_shared of its length (a letter of their height, not a
+  // 3 m lane dash beside 2.4 m letters) and at most twice as long, links
+  // the two; linked candidates of the same class are reported as one
+  // (join_across_strokes()).
+  float stroke_min_shared = 0.85f;
   // A crosswalk's stripes lie further apart across the road than letters
   // (0.5 m and more): stripes (at least stripe_min_length_m along, wider
   // than a line and at most stripe_max_width_m across, paint filling at
@@ -212,6 +223,8 @@ struct DetectorCounters {
   std::uint64_t parts = 0;               // connected bright regions kept
   std::uint64_t parts_dropped = 0;       // over capacity (kMaxParts)
   std::uint64_t lane_lines = 0;          // thin long parts set apart
+  std::uint64_t strokes_dropped = 0;     // ... short enough to be a letter, over kMaxStrokes
+  std::uint64_t joined = 0;              // candidates joined to the one across a letter stroke
   std::uint64_t candidates = 0;          // groups classified
   std::uint64_t candidates_dropped = 0;  // over capacity (kMaxCandidates)
   std::uint64_t oversize = 0;            // parts or groups too large to be a marking
@@ -239,15 +252,35 @@ struct Candidate {
   Features features;
   int predicted;  // class index, kRejectClass for "not a marking"
   float score;
+  // Index of the candidate across a letter stroke to its right
+  // (DetectorConfig::stroke_min_shared), reported with this one when both
+  // get the same class; -1 none.
+  int across_stroke;
 };
 inline constexpr std::size_t kMaxCandidates = 64;
 inline constexpr std::size_t kMaxParts = 1024;
+inline constexpr std::size_t kMaxStrokes = 64;  // line parts short enough to be a letter
 
-// True when candidates[index]'s box lies wholly inside the box of a larger
-// candidate of the same predicted class, or of one cut by the view's edge
-// (whatever it was classified as, seen only in part): a piece of that
-// marking (the R either side of a railway crossing's X), not one of its own.
+// True when at least kPieceMinInside of candidates[index]'s box lies inside
+// the box of a larger candidate of the same predicted class, or of one cut by
+// the view's edge (whatever it was classified as, seen only in part): a
+// piece of that marking (the R either side of a railway crossing's X, which
+// may reach a little past the X's box), not one of its own.
+inline constexpr float kPieceMinInside = 0.75f;
 bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index);
+
+// After classification: reported_by[i] = the candidate whose detection
+// candidate i is part of: the first of a word's candidates linked left to
+// right by across_stroke and classified alike (passing over up to two
+// rejected ones between them, a letter broken by a shadow, which join the
+// word too), or i itself. Returns how many candidates of the word's class
+// joined another's detection.
+std::size_t join_across_strokes(std::span<const Candidate> candidates,
+                                std::span<std::int32_t> reported_by);
+// Candidate `first` grown by those reported by it: their boxes joined, the
+// highest score of its class, cut by the view's edge where any of them is.
+Candidate joined_candidate(std::span<const Candidate> candidates,
+                           std::span<const std::int32_t> reported_by, std::size_t first);
 
 class MarkingDetector {
  public:
@@ -280,6 +313,8 @@ class MarkingDetector {
   const cv::Mat& paint_mask() const { return mask_; }
   // Every group of the last frame, classified or not.
   std::span<const Candidate> candidates() const { return {candidates_.data(), candidate_count_}; }
+  // Per candidate, the one whose detection it is part of (join_across_strokes).
+  std::span<const std::int32_t> reported_by() const { return {reported_by_.data(), candidate_count_}; }
   // The quad (image pixels) and ground centre of a candidate's box.
   void locate(const Candidate& candidate, Detection& out) const;
   // True when the candidate's centre lies in the guard band, beyond
@@ -314,6 +349,9 @@ class MarkingDetector {
   void cut_line_junctions();
   std::size_t label_parts();
   void group_parts(std::size_t part_count);
+  // Links the candidates either side of each letter-like stroke
+  // (Candidate::across_stroke).
+  void link_across_strokes(int gap_cols);
   void classify(Candidate& candidate);
   // A candidate's box on the ground (vehicle frame, metres).
   struct GroundBox {
@@ -369,11 +407,14 @@ class MarkingDetector {
   std::vector<std::uint8_t> fill_reached_;  // encloses_road(): pixels reached from the box's border
   std::vector<std::int32_t> fill_queue_;    // ... and those still to visit
   std::vector<Part> parts_;                 // kMaxParts
+  std::array<Part, kMaxStrokes> strokes_{};  // line parts short enough to be a letter
+  std::size_t stroke_count_ = 0;
   std::vector<std::int32_t> group_parent_;     // union-find over parts
   std::vector<std::uint8_t> part_groupable_;   // per part: may join a group (bit 1), as a stripe (bit 2)
   std::vector<std::int32_t> group_candidate_;  // group root -> candidate index
   std::array<Candidate, kMaxCandidates> candidates_{};
   std::size_t candidate_count_ = 0;
+  std::array<std::int32_t, kMaxCandidates> reported_by_{};  // join_across_strokes()
   std::array<Detection, kMaxDetections> detections_{};
   std::size_t detection_count_ = 0;
   PatchScratch scratch_;

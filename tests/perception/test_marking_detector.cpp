@@ -293,6 +293,125 @@ TEST_CASE("detector: a crosswalk's stripes are one candidate; two words side by 
   }
 }
 
+TEST_CASE("detector: a word split by its I, set apart as a line, is one detection; not across a lane dash") {
+  const CameraModel camera = default_camera_model();
+  const int xing = static_cast<int>(*marking_class_from_name("xing"));
+  const SureModel sure(xing);
+  DetectorConfig config;
+  config.model = &sure.model;
+  config.cnn_share = 0.0f;  // the sure model alone
+  // A letter: an outline 2.4 m along and 0.6 m across, strokes 0.15 m wide.
+  const auto letter = [](std::vector<GroundRect>& paint, double x0, double x1, double y0) {
+    const double y1 = y0 + 0.6;
+    paint.push_back({x0, x0 + 0.15, y0, y1});
+    paint.push_back({x1 - 0.15, x1, y0, y1});
+    paint.push_back({x0, x1, y0, y0 + 0.15});
+    paint.push_back({x0, x1, y1 - 0.15, y1});
+  };
+  // X, I, N, G: the I a bar 0.15 m wide, as thin as a line, 0.25 m from the
+  // letters either side, which are further apart than letters group.
+  std::vector<GroundRect> word;
+  letter(word, 9.0, 11.4, -1.5);
+  word.push_back({9.0, 11.4, -0.65, -0.5});
+  letter(word, 9.0, 11.4, -0.25);
+  letter(word, 9.0, 11.4, 0.45);
+  MarkingDetector detector(camera, config);
+  const auto found = detector.detect(render_road(camera, word));
+  CHECK(detector.candidates().size() == 2);  // X, and N G
+  CHECK(detector.counters().candidates == 2);
+  CHECK(detector.counters().joined == 1);
+  REQUIRE(found.size() == 1);
+  CHECK(found[0].ground_y == Catch::Approx(-0.225).margin(0.08));  // the word's middle
+  CHECK(found[0].ground_x == Catch::Approx(10.2).margin(0.15));
+
+  // Letters of two words either side of a lane dash 3 m long, as close: the
+  // dash is longer than the letters, so no letter of theirs.
+  std::vector<GroundRect> two_words;
+  letter(two_words, 9.3, 11.7, -0.925);
+  two_words.push_back({9.0, 12.0, -0.075, 0.075});
+  letter(two_words, 9.3, 11.7, 0.325);
+  MarkingDetector apart(camera, config);
+  CHECK(apart.detect(render_road(camera, two_words)).size() == 2);
+  CHECK(apart.counters().joined == 0);
+}
+
+TEST_CASE("detector: candidates across a stroke join only when classified alike") {
+  const int xing = static_cast<int>(*marking_class_from_name("xing"));
+  const int stop = static_cast<int>(*marking_class_from_name("stop"));
+  const auto candidate = [](int col0, int col1, int label, float score, bool clipped, bool near_only) {
+    Candidate c{};
+    c.col0 = col0;
+    c.col1 = col1;
+    c.row0 = 100;
+    c.row1 = 179;
+    c.parts = 1;
+    c.length_m = 2.4f;
+    c.width_m = 0.03f * static_cast<float>(col1 - col0 + 1);
+    c.predicted = label;
+    c.score = score;
+    c.clipped = clipped;
+    c.clipped_near_only = near_only;
+    c.across_stroke = -1;
+    return c;
+  };
+  std::array<std::int32_t, 4> reported_by{};
+  std::vector<Candidate> word = {candidate(10, 30, xing, 0.7f, false, false),
+                                 candidate(40, 80, xing, 0.9f, true, true)};
+  word[0].across_stroke = 1;
+  CHECK(join_across_strokes(word, reported_by) == 1);
+  CHECK(reported_by[0] == 0);
+  CHECK(reported_by[1] == 0);
+  const Candidate whole = joined_candidate(word, reported_by, 0);
+  CHECK(whole.col0 == 10);
+  CHECK(whole.col1 == 80);
+  CHECK(whole.width_m == Catch::Approx(0.03f * 71.0f));
+  CHECK(whole.parts == 2);
+  CHECK(whole.score == 0.9f);
+  CHECK(whole.clipped);
+  CHECK(whole.clipped_near_only);
+  CHECK(word[0].col1 == 30);  // the candidates stay as classified
+
+  word[1].predicted = stop;
+  CHECK(join_across_strokes(word, reported_by) == 0);
+  CHECK(reported_by[1] == 1);
+
+  // A letter broken by a shadow, its pieces rejected, between two of the
+  // word's candidates: part of the word, up to two of them.
+  for (const int pieces : {1, 2, 3}) {
+    std::vector<Candidate> broken = {candidate(10, 30, xing, 0.8f, false, false)};
+    for (int k = 0; k < pieces; ++k) broken.push_back(candidate(40 + 10 * k, 45 + 10 * k, kRejectClass, 0.95f, false, false));
+    broken.push_back(candidate(80, 100, xing, 0.7f, false, false));
+    for (std::size_t k = 0; k + 1 < broken.size(); ++k) broken[k].across_stroke = static_cast<int>(k + 1);
+    std::array<std::int32_t, 5> by{};
+    CHECK(join_across_strokes(broken, by) == (pieces <= 2 ? 1u : 0u));
+    if (pieces > 2) continue;
+    for (std::size_t k = 0; k < broken.size(); ++k) CHECK(by[k] == 0);
+    const Candidate joined = joined_candidate(broken, by, 0);
+    CHECK(joined.col1 == 100);
+    CHECK(joined.score == 0.8f);  // the word's, not the pieces' reject score
+  }
+
+  // A chain, the candidates in either order: each links to the next.
+  for (const bool reversed : {false, true}) {
+    std::vector<Candidate> chain = {candidate(10, 30, xing, 0.8f, false, false),
+                                    candidate(40, 60, xing, 0.8f, false, false),
+                                    candidate(70, 90, xing, 0.8f, true, false)};
+    if (reversed) std::swap(chain[0], chain[2]);
+    const int a = reversed ? 2 : 0, c = reversed ? 0 : 2;
+    chain[static_cast<std::size_t>(a)].across_stroke = 1;
+    chain[1].across_stroke = c;
+    CHECK(join_across_strokes(chain, reported_by) == 2);
+    CHECK(reported_by[0] == a);
+    CHECK(reported_by[1] == a);
+    CHECK(reported_by[2] == a);
+    const Candidate joined = joined_candidate(chain, reported_by, static_cast<std::size_t>(a));
+    CHECK(joined.col0 == 10);
+    CHECK(joined.col1 == 90);
+    CHECK(joined.clipped);
+    CHECK_FALSE(joined.clipped_near_only);  // the third is cut by another edge
+  }
+}
+
 TEST_CASE("detector: sunlit road beside a shadow is not paint; an arrow's solid head still is") {
   const CameraModel camera = default_camera_model();
   // An arrow: a 0.3 m shaft 3 m long under a solid 1.2 m x 1.5 m head
@@ -405,21 +524,23 @@ TEST_CASE("detector: a piece inside a larger marking is no detection of its own"
   const std::vector<Candidate> candidates = {
       box(100, 10, 190, 90, rail),                 // 0: an X
       box(110, 40, 125, 60, rail),                 // 1: an R inside it
-      box(170, 40, 195, 60, rail),                 // 2: reaching out of it
+      box(170, 40, 195, 60, rail),                 // 2: 21 of its 26 columns inside it
       box(120, 20, 140, 30, xing),                 // 3: inside, another class
       box(100, 10, 190, 90, rail),                 // 4: the same box again (not larger)
       box(300, 200, 390, 300, kRejectClass, true), // 5: an X cut by the view's edge, rejected
       box(310, 240, 325, 260, rail),               // 6: its R
       box(300, 100, 390, 190, kRejectClass),       // 7: something rejected, whole
       box(310, 140, 325, 160, rail),               // 8: a marking inside its box
+      box(180, 40, 205, 60, rail),                 // 9: 11 of its 26 columns inside the X
   };
   CHECK_FALSE(is_piece_of_larger(candidates, 0));
   CHECK(is_piece_of_larger(candidates, 1));
-  CHECK_FALSE(is_piece_of_larger(candidates, 2));
+  CHECK(is_piece_of_larger(candidates, 2));  // an R reaching a little past the X
   CHECK_FALSE(is_piece_of_larger(candidates, 3));
   CHECK_FALSE(is_piece_of_larger(candidates, 4));
   CHECK(is_piece_of_larger(candidates, 6));
   CHECK_FALSE(is_piece_of_larger(candidates, 8));
+  CHECK_FALSE(is_piece_of_larger(candidates, 9));
 }
 
 TEST_CASE("detector: a still reports a marking cut by the near edge, marked partial; a stream does not") {
