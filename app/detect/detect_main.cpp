@@ -94,9 +94,7 @@ bool write_view(const markloop::perception::MarkingDetector& detector,
     const Candidate& c = candidates[i];
     // A word split by its I is reported as one, where its first candidate says.
     const auto first = static_cast<std::size_t>(reported_by[i]);
-    bool joined = first != i;
-    for (std::size_t j = 0; j < candidates.size() && !joined; ++j)
-      joined = j != i && static_cast<std::size_t>(reported_by[j]) == i;
+    const bool joined = first != i || reports_others(reported_by, i);
     Detection where{};
     detector.locate(joined ? joined_candidate(candidates, reported_by, first) : c, where);
     const bool marking = c.predicted != kRejectClass;

@@ -501,9 +501,7 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
       continue;
     }
     // The first of a word's candidates split by its I reports the word.
-    bool first_of_word = false;
-    for (std::size_t j = 0; j < candidate_count_ && joined > 0 && !first_of_word; ++j)
-      first_of_word = j != i && reported_by_[j] == static_cast<std::int32_t>(i);
+    const bool first_of_word = joined > 0 && reports_others({reported_by_.data(), candidate_count_}, i);
     Candidate word;  // filled only for a word: a copy, as rare as they are
     if (first_of_word) word = joined_candidate(candidates(), {reported_by_.data(), candidate_count_}, i);
     const Candidate& candidate = first_of_word ? word : candidates_[i];
@@ -1013,6 +1011,12 @@ std::size_t join_across_strokes(std::span<const Candidate> candidates,
     }
   }
   return joined;
+}
+
+bool reports_others(std::span<const std::int32_t> reported_by, std::size_t first) {
+  for (std::size_t j = 0; j < reported_by.size(); ++j)
+    if (j != first && reported_by[j] == static_cast<std::int32_t>(first)) return true;
+  return false;
 }
 
 Candidate joined_candidate(std::span<const Candidate> candidates,

@@ -277,6 +277,9 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
 // joined another's detection.
 std::size_t join_across_strokes(std::span<const Candidate> candidates,
                                 std::span<std::int32_t> reported_by);
+// True when another candidate is part of candidate `first`'s detection:
+// `first` reports a word joined across its I.
+bool reports_others(std::span<const std::int32_t> reported_by, std::size_t first);
 // Candidate `first` grown by those reported by it: their boxes joined, the
 // highest score of its class, cut by the view's edge where any of them is.
 Candidate joined_candidate(std::span<const Candidate> candidates,
