@@ -966,8 +966,58 @@ void MarkingDetector::link_across_strokes(int gap_cols) {
       if (c.col1 < stroke.col0 && stroke.col0 - c.col1 - 1 <= gap_cols) left = static_cast<int>(i);
       if (c.col0 > stroke.col1 && c.col0 - stroke.col1 - 1 <= gap_cols) right = static_cast<int>(i);
     }
-    if (left >= 0 && right >= 0) candidates_[static_cast<std::size_t>(left)].across_stroke = right;
+    if (left >= 0 && right >= 0) {
+      candidates_[static_cast<std::size_t>(left)].across_stroke = right;
+    } else if (left >= 0 || right >= 0) {
+      // Letters on one side only: those on the other may have run out of
+      // the view, the stroke with them or as a sliver beside it (the X of
+      // XING cut to its upright by the image's side).
+      const int side = left >= 0 ? 1 : -1;  // towards the missing letters
+      if (runs_out_of_view(stroke, side, gap_cols)) {
+        Candidate& letters = candidates_[static_cast<std::size_t>(left >= 0 ? left : right)];
+        letters.clipped = true;
+        letters.clipped_near_only = false;
+      }
+    }
   }
+  // A word is seen whole only where all its letters are: the letters across
+  // a stroke from a cut one (the X of XING run out of the image's side) are
+  // cut too, else their half would be reported as the word, a metre off.
+  // Cuts only spread, so this settles within one pass per link.
+  bool spread = true;
+  for (std::size_t pass = 0; spread && pass < candidate_count_; ++pass) {
+    spread = false;
+    for (std::size_t i = 0; i < candidate_count_; ++i) {
+      const int j = candidates_[i].across_stroke;
+      if (j < 0) continue;
+      Candidate& a = candidates_[i];
+      Candidate& b = candidates_[static_cast<std::size_t>(j)];
+      const bool clipped = a.clipped || b.clipped;
+      const bool near_only = clipped && (!a.clipped || a.clipped_near_only) &&
+                             (!b.clipped || b.clipped_near_only);
+      for (Candidate* c : {&a, &b}) {
+        if (c->clipped == clipped && c->clipped_near_only == near_only) continue;
+        c->clipped = clipped;
+        c->clipped_near_only = near_only;
+        spread = true;
+      }
+    }
+  }
+}
+
+bool MarkingDetector::runs_out_of_view(const Part& stroke, int side, int gap_cols) const {
+  if ((touched_edges(stroke) & kOtherEdge) != 0) return true;
+  const int rows = stroke.row1 - stroke.row0 + 1;
+  for (std::size_t t = 0; t < stroke_count_; ++t) {
+    const Part& beyond = strokes_[t];
+    const int gap = side > 0 ? beyond.col0 - stroke.col1 - 1 : stroke.col0 - beyond.col1 - 1;
+    const int shared = std::min(beyond.row1, stroke.row1) - std::max(beyond.row0, stroke.row0) + 1;
+    if (gap < 0 || gap > gap_cols ||
+        static_cast<float>(shared) < config_.stroke_min_shared * static_cast<float>(rows))
+      continue;
+    if ((touched_edges(beyond) & kOtherEdge) != 0) return true;
+  }
+  return false;
 }
 
 std::size_t join_across_strokes(std::span<const Candidate> candidates,

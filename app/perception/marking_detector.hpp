@@ -353,8 +353,13 @@ class MarkingDetector {
   std::size_t label_parts();
   void group_parts(std::size_t part_count);
   // Links the candidates either side of each letter-like stroke
-  // (Candidate::across_stroke).
+  // (Candidate::across_stroke), and marks as cut those across a stroke from
+  // letters cut by the view's edge: the word is seen only in part.
   void link_across_strokes(int gap_cols);
+  // True when a stroke, or one within gap_cols of it towards `side` (+1 its
+  // right, -1 its left) along most of its rows, touches the view's side or
+  // far edge.
+  bool runs_out_of_view(const Part& stroke, int side, int gap_cols) const;
   void classify(Candidate& candidate);
   // A candidate's box on the ground (vehicle frame, metres).
   struct GroundBox {

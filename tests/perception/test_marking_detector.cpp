@@ -324,6 +324,26 @@ TEST_CASE("detector: a word split by its I, set apart as a line, is one detectio
   CHECK(found[0].ground_y == Catch::Approx(-0.225).margin(0.08));  // the word's middle
   CHECK(found[0].ground_x == Catch::Approx(10.2).margin(0.15));
 
+  // The same word with its X run out of the view's right side: the N G
+  // beside it is no word of its own, but the word seen in part. The X cut
+  // to its upright is a sliver as thin as a line, set apart as one; cut less,
+  // a candidate cut by the edge.
+  const double view_right = config.region.y_right_m - config.guard_m;
+  for (const double x_seen_m : {0.3, 0.45}) {
+    CAPTURE(x_seen_m);
+    std::vector<GroundRect> cut_word = word;
+    const double shift = view_right + x_seen_m - (-1.5 + 0.6);  // the X's left side there
+    for (GroundRect& paint : cut_word) {
+      paint.y0 += shift;
+      paint.y1 += shift;
+    }
+    MarkingDetector cut(camera, config);
+    CHECK(cut.detect(render_road(camera, cut_word)).empty());
+    REQUIRE(cut.candidates().size() == (x_seen_m < 0.4 ? 1u : 2u));
+    for (const Candidate& part : cut.candidates()) CHECK(part.clipped);
+    CHECK(cut.counters().clipped == 1);  // the first part reports the word
+  }
+
   // Letters of two words either side of a lane dash 3 m long, as close: the
   // dash is longer than the letters, so no letter of theirs.
   std::vector<GroundRect> two_words;
