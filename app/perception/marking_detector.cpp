@@ -134,6 +134,8 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   const auto& region = config.region;
   window_cols_ = odd_at_least_3(config.local_window_m / region.y_step_m);
   window_rows_ = odd_at_least_3(config.local_window_m / region.x_step_m);
+  word_gap_cols_ = static_cast<int>(std::lround(config.word_join_gap_m / region.y_step_m));
+  word_max_cols_ = static_cast<int>(std::lround(config.word_max_width_m / region.y_step_m));
   min_part_area_px_ = std::max(
       1, static_cast<int>(std::lround(config.min_part_area_m2 / (region.x_step_m * region.y_step_m))));
   bev_.create(rows, cols, CV_8UC1);
@@ -493,7 +495,9 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
     last_view_ = ViewKind::Cluttered;
   for (std::size_t i = 0; i < candidate_count_; ++i) classify(candidates_[i]);
   const std::size_t joined =
-      join_across_strokes(candidates(), {reported_by_.data(), candidate_count_});
+      join_across_strokes(candidates(), {reported_by_.data(), candidate_count_}) +
+      join_split_words(candidates(), {reported_by_.data(), candidate_count_}, word_gap_cols_,
+                       word_max_cols_, config_.stroke_min_shared);
   counters_.joined += joined;
   for (std::size_t i = 0; i < candidate_count_; ++i) {
     if (reported_by_[i] != static_cast<std::int32_t>(i)) {  // in a word's detection
@@ -963,8 +967,12 @@ void MarkingDetector::link_across_strokes(int gap_cols) {
     for (std::size_t i = 0; i < candidate_count_; ++i) {
       const Candidate& c = candidates_[i];
       if (!beside(c)) continue;
-      if (c.col1 < stroke.col0 && stroke.col0 - c.col1 - 1 <= gap_cols) left = static_cast<int>(i);
-      if (c.col0 > stroke.col1 && c.col0 - stroke.col1 - 1 <= gap_cols) right = static_cast<int>(i);
+      // (A box may reach a column or two into the stroke's: letters slanted
+      // in the view on a bend.)
+      if (c.col0 < stroke.col0 && c.col1 <= stroke.col1 && stroke.col0 - c.col1 - 1 <= gap_cols)
+        left = static_cast<int>(i);
+      if (c.col1 > stroke.col1 && c.col0 >= stroke.col0 && c.col0 - stroke.col1 - 1 <= gap_cols)
+        right = static_cast<int>(i);
     }
     if (left >= 0 && right >= 0) {
       candidates_[static_cast<std::size_t>(left)].across_stroke = right;
@@ -1024,14 +1032,15 @@ std::size_t join_across_strokes(std::span<const Candidate> candidates,
                                 std::span<std::int32_t> reported_by) {
   const std::size_t n = std::min({candidates.size(), reported_by.size(), kMaxCandidates});
   const auto valid = [&](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
-  // The next candidate of a marking class across the strokes to the right
-  // of `i`, passing over at most kMaxBrokenLetters rejected ones (a letter
-  // broken by a shadow: its pieces taken for no marking); -1 none.
+  // The next candidate of i's class across the strokes to the right of
+  // `i`, passing over at most kMaxBrokenLetters of other classes (a letter
+  // broken by a shadow, its pieces taken for no marking; the diagonal of an
+  // N between its upright and the I, taken for something else); -1 none.
   constexpr int kMaxBrokenLetters = 2;
   const auto next_marking = [&](std::size_t i) {
     int next = candidates[i].across_stroke;
-    for (int hops = 0; valid(next) && candidates[static_cast<std::size_t>(next)].predicted == kRejectClass;
-         ++hops)
+    for (int hops = 0;
+         valid(next) && candidates[static_cast<std::size_t>(next)].predicted != candidates[i].predicted; ++hops)
       next = hops < kMaxBrokenLetters ? candidates[static_cast<std::size_t>(next)].across_stroke : -1;
     return valid(next) ? next : -1;
   };
@@ -1058,6 +1067,65 @@ std::size_t join_across_strokes(std::span<const Candidate> candidates,
       reported_by[static_cast<std::size_t>(next)] = static_cast<std::int32_t>(first);
       ++joined;
       at = static_cast<std::size_t>(next);
+    }
+  }
+  return joined;
+}
+
+bool is_word_class(int label) {
+  if (label < 0 || label >= static_cast<int>(kMarkingClassCount)) return false;
+  const std::string_view name = kMarkingClassNames[static_cast<std::size_t>(label)];
+  for (const std::string_view word : {"stop", "ped", "xing", "bike", "25", "35", "40"})
+    if (name == word) return true;
+  return false;
+}
+
+std::size_t join_split_words(std::span<const Candidate> candidates, std::span<std::int32_t> reported_by,
+                             int gap_cols, int max_cols, float min_shared) {
+  const std::size_t n = std::min({candidates.size(), reported_by.size(), kMaxCandidates});
+  const auto rows_of = [](const Candidate& c) { return c.row1 - c.row0 + 1; };
+  // Alone: neither reports another nor is reported by one.
+  std::array<bool, kMaxCandidates> alone{};
+  for (std::size_t i = 0; i < n; ++i) alone[i] = reported_by[i] == static_cast<std::int32_t>(i);
+  for (std::size_t i = 0; i < n; ++i)
+    if (reported_by[i] != static_cast<std::int32_t>(i)) alone[static_cast<std::size_t>(reported_by[i])] = false;
+  // Letters of one word: close across, along most of the shorter one's
+  // rows, and at most half as long again. (Whole ones only: a lane dash
+  // coming into view beside a word is no letter of it, whatever it is
+  // taken for.)
+  const auto beside = [&](const Candidate& a, const Candidate& b) {
+    const int gap = std::max(b.col0 - a.col1, a.col0 - b.col1) - 1;
+    const int shared = std::min(a.row1, b.row1) - std::max(a.row0, b.row0) + 1;
+    const int shorter = std::min(rows_of(a), rows_of(b));
+    const int longer = std::max(rows_of(a), rows_of(b));
+    return gap >= 0 && gap <= gap_cols && 2 * longer <= 3 * shorter &&
+           static_cast<float>(shared) >= min_shared * static_cast<float>(shorter);
+  };
+  std::size_t joined = 0;
+  for (std::size_t first = 0; first < n; ++first) {
+    if (!alone[first] || !is_word_class(candidates[first].predicted) || candidates[first].clipped) continue;
+    const int label = candidates[first].predicted;
+    int col0 = candidates[first].col0, col1 = candidates[first].col1;
+    // The word grows by the letters beside any of its own, while narrow
+    // enough to be one word.
+    for (bool grew = true; grew;) {
+      grew = false;
+      for (std::size_t j = 0; j < n; ++j) {
+        const Candidate& letter = candidates[j];
+        if (j == first || !alone[j] || letter.predicted != label || letter.clipped) continue;
+        if (std::max(col1, letter.col1) - std::min(col0, letter.col0) + 1 > max_cols) continue;
+        for (std::size_t member = 0; member < n; ++member) {
+          const bool in_word = member == first || (!alone[member] && reported_by[member] == static_cast<std::int32_t>(first));
+          if (!in_word || !beside(candidates[member], letter)) continue;
+          reported_by[j] = static_cast<std::int32_t>(first);
+          alone[first] = alone[j] = false;
+          col0 = std::min(col0, letter.col0);
+          col1 = std::max(col1, letter.col1);
+          ++joined;
+          grew = true;
+          break;
+        }
+      }
     }
   }
   return joined;

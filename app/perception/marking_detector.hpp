@@ -121,6 +121,15 @@ struct DetectorConfig {
   // the two; linked candidates of the same class are reported as one
   // (join_across_strokes()).
   float stroke_min_shared = 0.85f;
+  // A word's letters a little further apart than the grouping gap (on a
+  // bend, XIN and G) fall in two candidates, each classified as the word:
+  // candidates of the same word class side by side (sharing
+  // stroke_min_shared of the shorter one's rows, at most half as long
+  // again), up to word_join_gap_m apart and together at most
+  // word_max_width_m across (not the same word in the next lane), are
+  // reported as one (join_split_words()).
+  float word_join_gap_m = 0.6f;
+  float word_max_width_m = 3.2f;
   // A crosswalk's stripes lie further apart across the road than letters
   // (0.5 m and more): stripes (at least stripe_min_length_m along, wider
   // than a line and at most stripe_max_width_m across, paint filling at
@@ -271,12 +280,23 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
 
 // After classification: reported_by[i] = the candidate whose detection
 // candidate i is part of: the first of a word's candidates linked left to
-// right by across_stroke and classified alike (passing over up to two
-// rejected ones between them, a letter broken by a shadow, which join the
-// word too), or i itself. Returns how many candidates of the word's class
+// right by across_stroke and classified alike (passing over up to two of
+// other classes between them, rejected or not: a letter broken by a
+// shadow, which join the word too), or i itself. Returns how many candidates of the word's class
 // joined another's detection.
 std::size_t join_across_strokes(std::span<const Candidate> candidates,
                                 std::span<std::int32_t> reported_by);
+// True for the classes painted as words or numbers (stop, ped, xing, the
+// word BIKE or the bicycle, 25, 35, 40).
+bool is_word_class(int label);
+// After join_across_strokes(): of the whole candidates joined to no other,
+// those of a word class side by side with one of the same class (sharing
+// min_shared of the shorter one's rows, at most half as long again) up to
+// gap_cols apart, directly or through others so, while at most max_cols
+// across together, are reported by the first. Returns how many joined
+// another's detection.
+std::size_t join_split_words(std::span<const Candidate> candidates, std::span<std::int32_t> reported_by,
+                             int gap_cols, int max_cols, float min_shared);
 // True when another candidate is part of candidate `first`'s detection:
 // `first` reports a word joined across its I.
 bool reports_others(std::span<const std::int32_t> reported_by, std::size_t first);
@@ -390,6 +410,7 @@ class MarkingDetector {
   const MlpModel* model_;
   const CnnModel* cnn_;
   int window_cols_ = 1, window_rows_ = 1;
+  int word_gap_cols_ = 0, word_max_cols_ = 0;  // word_join_gap_m, word_max_width_m
   int min_part_area_px_ = 1;
 
   cv::Mat bev_;       // CV_8UC1 bird's-eye image

@@ -415,9 +415,10 @@ TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms perio
             << kCycles - 1 << " cycles " << drift / 1000 << " us, worst wake-up lateness "
             << late_max / 1000 << " us\n";
   // Bounds for a TCG-emulated guest sharing 2 host cores with the flood:
-  // generous against scheduling noise, far below one cycle (a missed or
-  // doubled cycle would be >= 100 ms).
-  CHECK(worst < 30'000'000);
+  // generous against scheduling noise (44 ms seen once with the host busy
+  // beside the VM), half a cycle (a missed or doubled cycle would be
+  // >= 100 ms).
+  CHECK(worst < 50'000'000);
   CHECK(std::abs(drift) < 30'000'000);  // absolute deadlines: no accumulated drift
 }
 

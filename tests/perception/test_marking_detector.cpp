@@ -395,11 +395,14 @@ TEST_CASE("detector: candidates across a stroke join only when classified alike"
   CHECK(join_across_strokes(word, reported_by) == 0);
   CHECK(reported_by[1] == 1);
 
-  // A letter broken by a shadow, its pieces rejected, between two of the
-  // word's candidates: part of the word, up to two of them.
+  // A letter broken by a shadow, its pieces rejected (or the diagonal of
+  // an N between its upright and the I, taken for a railway mark), between
+  // two of the word's candidates: part of the word, up to two of them.
+  const int rail = static_cast<int>(*marking_class_from_name("rail"));
   for (const int pieces : {1, 2, 3}) {
     std::vector<Candidate> broken = {candidate(10, 30, xing, 0.8f, false, false)};
-    for (int k = 0; k < pieces; ++k) broken.push_back(candidate(40 + 10 * k, 45 + 10 * k, kRejectClass, 0.95f, false, false));
+    for (int k = 0; k < pieces; ++k)
+      broken.push_back(candidate(40 + 10 * k, 45 + 10 * k, k == 0 ? rail : kRejectClass, 0.95f, false, false));
     broken.push_back(candidate(80, 100, xing, 0.7f, false, false));
     for (std::size_t k = 0; k + 1 < broken.size(); ++k) broken[k].across_stroke = static_cast<int>(k + 1);
     std::array<std::int32_t, 5> by{};
@@ -408,7 +411,8 @@ TEST_CASE("detector: candidates across a stroke join only when classified alike"
     for (std::size_t k = 0; k < broken.size(); ++k) CHECK(by[k] == 0);
     const Candidate joined = joined_candidate(broken, by, 0);
     CHECK(joined.col1 == 100);
-    CHECK(joined.score == 0.8f);  // the word's, not the pieces' reject score
+    CHECK(joined.score == 0.8f);  // the word's, not the pieces' scores
+    CHECK(joined.predicted == xing);
   }
 
   // A chain, the candidates in either order: each links to the next.
@@ -429,6 +433,56 @@ TEST_CASE("detector: candidates across a stroke join only when classified alike"
     CHECK(joined.col1 == 90);
     CHECK(joined.clipped);
     CHECK_FALSE(joined.clipped_near_only);  // the third is cut by another edge
+  }
+}
+
+TEST_CASE("detector: a word's letters a little further apart than the grouping gap are one detection") {
+  const int xing = static_cast<int>(*marking_class_from_name("xing"));
+  const int stop = static_cast<int>(*marking_class_from_name("stop"));
+  const int forward = static_cast<int>(*marking_class_from_name("forward"));
+  const auto candidate = [](int col0, int col1, int row0, int label, bool clipped) {
+    Candidate c{};
+    c.col0 = col0;
+    c.col1 = col1;
+    c.row0 = row0;
+    c.row1 = row0 + 47;
+    c.parts = 1;
+    c.length_m = 2.4f;
+    c.predicted = label;
+    c.score = 0.9f;
+    c.clipped = clipped;
+    c.across_stroke = -1;
+    return c;
+  };
+  const int gap = 15, max_cols = 80;  // 0.6 m and 3.2 m at 0.04 m a column
+  SECTION("XIN and G; a third letter through the second") {
+    const std::vector<Candidate> word = {candidate(160, 170, 101, xing, false), candidate(100, 130, 100, xing, false),
+                                         candidate(140, 150, 102, xing, false)};
+    std::array<std::int32_t, 3> by{0, 1, 2};
+    CHECK(join_split_words(word, by, gap, max_cols, 0.85f) == 2);
+    CHECK(by == std::array<std::int32_t, 3>{0, 0, 0});
+    const Candidate whole = joined_candidate(word, by, 0);
+    CHECK(whole.col0 == 100);
+    CHECK(whole.col1 == 170);
+  }
+  SECTION("not: too wide together, another class, no word, cut, along the road, too far") {
+    const std::vector<Candidate> apart = {
+        candidate(100, 160, 100, stop, false), candidate(170, 230, 100, stop, false),       // the next lane's STOP
+        candidate(240, 260, 100, xing, false),                                              // another word
+        candidate(300, 320, 100, forward, false), candidate(330, 350, 100, forward, false),  // arrows
+        candidate(400, 420, 100, xing, false), candidate(430, 450, 100, xing, true),         // the second cut
+        candidate(500, 520, 100, xing, false), candidate(530, 550, 130, xing, false),        // half along
+        candidate(600, 620, 100, xing, false), candidate(640, 660, 100, xing, false)};       // 19 apart
+    std::array<std::int32_t, 11> by{};
+    for (std::size_t i = 0; i < by.size(); ++i) by[i] = static_cast<std::int32_t>(i);
+    CHECK(join_split_words(apart, by, gap, max_cols, 0.85f) == 0);
+  }
+  SECTION("not: a candidate already in a word across its I") {
+    const std::vector<Candidate> words = {candidate(100, 130, 100, xing, false), candidate(140, 170, 100, xing, false),
+                                          candidate(180, 190, 100, xing, false)};
+    std::array<std::int32_t, 3> by{0, 0, 2};  // the first two joined across a stroke
+    CHECK(join_split_words(words, by, gap, max_cols, 0.85f) == 0);
+    CHECK(by[2] == 2);
   }
 }
 
