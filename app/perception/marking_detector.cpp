@@ -1073,11 +1073,13 @@ std::size_t join_across_strokes(std::span<const Candidate> candidates,
 }
 
 bool is_word_class(int label) {
-  if (label < 0 || label >= static_cast<int>(kMarkingClassCount)) return false;
-  const std::string_view name = kMarkingClassNames[static_cast<std::size_t>(label)];
-  for (const std::string_view word : {"stop", "ped", "xing", "bike", "25", "35", "40"})
-    if (name == word) return true;
-  return false;
+  static constexpr auto kWords = [] {
+    std::array<bool, kMarkingClassCount> words{};
+    for (const std::string_view name : {"stop", "ped", "xing", "bike", "25", "35", "40"})
+      words[*marking_class_from_name(name)] = true;
+    return words;
+  }();
+  return label >= 0 && label < static_cast<int>(kMarkingClassCount) && kWords[static_cast<std::size_t>(label)];
 }
 
 std::size_t join_split_words(std::span<const Candidate> candidates, std::span<std::int32_t> reported_by,
@@ -1101,10 +1103,16 @@ std::size_t join_split_words(std::span<const Candidate> candidates, std::span<st
     return gap >= 0 && gap <= gap_cols && 2 * longer <= 3 * shorter &&
            static_cast<float>(shared) >= min_shared * static_cast<float>(shorter);
   };
+  const auto letter_of = [&](std::size_t i, int label) {
+    return alone[i] && candidates[i].predicted == label && !candidates[i].clipped;
+  };
   std::size_t joined = 0;
+  std::array<std::size_t, kMaxCandidates> word{};  // the word's candidates, first first
   for (std::size_t first = 0; first < n; ++first) {
-    if (!alone[first] || !is_word_class(candidates[first].predicted) || candidates[first].clipped) continue;
     const int label = candidates[first].predicted;
+    if (!is_word_class(label) || !letter_of(first, label)) continue;
+    std::size_t letters = 1;
+    word[0] = first;
     int col0 = candidates[first].col0, col1 = candidates[first].col1;
     // The word grows by the letters beside any of its own, while narrow
     // enough to be one word.
@@ -1112,21 +1120,20 @@ std::size_t join_split_words(std::span<const Candidate> candidates, std::span<st
       grew = false;
       for (std::size_t j = 0; j < n; ++j) {
         const Candidate& letter = candidates[j];
-        if (j == first || !alone[j] || letter.predicted != label || letter.clipped) continue;
+        if (j == first || !letter_of(j, label)) continue;
         if (std::max(col1, letter.col1) - std::min(col0, letter.col0) + 1 > max_cols) continue;
-        for (std::size_t member = 0; member < n; ++member) {
-          const bool in_word = member == first || (!alone[member] && reported_by[member] == static_cast<std::int32_t>(first));
-          if (!in_word || !beside(candidates[member], letter)) continue;
-          reported_by[j] = static_cast<std::int32_t>(first);
-          alone[first] = alone[j] = false;
-          col0 = std::min(col0, letter.col0);
-          col1 = std::max(col1, letter.col1);
-          ++joined;
-          grew = true;
-          break;
-        }
+        const auto next_to = [&](std::size_t member) { return beside(candidates[member], letter); };
+        if (std::none_of(word.begin(), word.begin() + static_cast<std::ptrdiff_t>(letters), next_to)) continue;
+        reported_by[j] = static_cast<std::int32_t>(first);
+        alone[j] = false;
+        word[letters++] = j;
+        col0 = std::min(col0, letter.col0);
+        col1 = std::max(col1, letter.col1);
+        ++joined;
+        grew = true;
       }
     }
+    if (letters > 1) alone[first] = false;
   }
   return joined;
 }

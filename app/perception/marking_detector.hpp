@@ -282,8 +282,8 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
 // candidate i is part of: the first of a word's candidates linked left to
 // right by across_stroke and classified alike (passing over up to two of
 // other classes between them, rejected or not: a letter broken by a
-// shadow, which join the word too), or i itself. Returns how many candidates of the word's class
-// joined another's detection.
+// shadow, which join the word too), or i itself. Returns how many
+// candidates of the word's class joined another's detection.
 std::size_t join_across_strokes(std::span<const Candidate> candidates,
                                 std::span<std::int32_t> reported_by);
 // True for the classes painted as words or numbers (stop, ped, xing, the
@@ -298,7 +298,7 @@ bool is_word_class(int label);
 std::size_t join_split_words(std::span<const Candidate> candidates, std::span<std::int32_t> reported_by,
                              int gap_cols, int max_cols, float min_shared);
 // True when another candidate is part of candidate `first`'s detection:
-// `first` reports a word joined across its I.
+// `first` reports a word joined from several candidates.
 bool reports_others(std::span<const std::int32_t> reported_by, std::size_t first);
 // Candidate `first` grown by those reported by it: their boxes joined, the
 // highest score of its class, cut by the view's edge where any of them is.
