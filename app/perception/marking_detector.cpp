@@ -29,6 +29,17 @@ constexpr double kMinHorizonLineM = 1.5;
 constexpr std::uint8_t kNearEdge = 1;
 constexpr std::uint8_t kOtherEdge = 2;
 
+// Rows a box (part, stroke, candidate) spans, and rows two boxes share (0
+// or less when they share none).
+template <typename Box>
+int rows_of(const Box& box) {
+  return box.row1 - box.row0 + 1;
+}
+template <typename BoxA, typename BoxB>
+int rows_shared(const BoxA& a, const BoxB& b) {
+  return std::min(a.row1, b.row1) - std::max(a.row0, b.row0) + 1;
+}
+
 // Whether `value` is brighter than the mean of `count` pixels summing to
 // `sum` by contrast_q8 / 256 grey levels or ratio_q8 / 256 of the mean,
 // whichever is larger; in integers scaled by count and 256 (no division;
@@ -883,7 +894,7 @@ void MarkingDetector::group_parts(std::size_t part_count) {
   // Two stripes side by side: most of the shorter one's rows shared.
   const auto stripes_side_by_side = [&](const Part& a, const Part& b) {
     if (b.col0 > a.col1 + stripe_gap_cols || a.col0 > b.col1 + stripe_gap_cols) return false;
-    const int shared = std::min(a.row1, b.row1) - std::max(a.row0, b.row0) + 1;
+    const int shared = rows_shared(a, b);
     const int shorter = std::min(a.row1 - a.row0, b.row1 - b.row0) + 1;
     return static_cast<float>(shared) >= config_.stripe_min_shared * static_cast<float>(shorter);
   };
@@ -952,14 +963,13 @@ void MarkingDetector::group_parts(std::size_t part_count) {
 }
 
 void MarkingDetector::link_across_strokes(int gap_cols) {
-  const auto rows_of = [](const auto& box) { return box.row1 - box.row0 + 1; };
   for (std::size_t s = 0; s < stroke_count_; ++s) {
     const Part& stroke = strokes_[s];
     // A letter's group beside the stroke: close across, along the stroke's
     // whole length, and at most twice as long (its group may have taken in
     // paint just beyond the letters).
     const auto beside = [&](const Candidate& c) {
-      const int shared = std::min(c.row1, stroke.row1) - std::max(c.row0, stroke.row0) + 1;
+      const int shared = rows_shared(c, stroke);
       return static_cast<float>(shared) >= config_.stroke_min_shared * static_cast<float>(rows_of(stroke)) &&
              2 * shared >= rows_of(c);
     };
@@ -1019,7 +1029,7 @@ bool MarkingDetector::runs_out_of_view(const Part& stroke, int side, int gap_col
   for (std::size_t t = 0; t < stroke_count_; ++t) {
     const Part& beyond = strokes_[t];
     const int gap = side > 0 ? beyond.col0 - stroke.col1 - 1 : stroke.col0 - beyond.col1 - 1;
-    const int shared = std::min(beyond.row1, stroke.row1) - std::max(beyond.row0, stroke.row0) + 1;
+    const int shared = rows_shared(beyond, stroke);
     if (gap < 0 || gap > gap_cols ||
         static_cast<float>(shared) < config_.stroke_min_shared * static_cast<float>(rows))
       continue;
@@ -1085,7 +1095,6 @@ bool is_word_class(int label) {
 std::size_t join_split_words(std::span<const Candidate> candidates, std::span<std::int32_t> reported_by,
                              int gap_cols, int max_cols, float min_shared) {
   const std::size_t n = std::min({candidates.size(), reported_by.size(), kMaxCandidates});
-  const auto rows_of = [](const Candidate& c) { return c.row1 - c.row0 + 1; };
   // Alone: neither reports another nor is reported by one.
   std::array<bool, kMaxCandidates> alone{};
   for (std::size_t i = 0; i < n; ++i) alone[i] = reported_by[i] == static_cast<std::int32_t>(i);
@@ -1097,7 +1106,7 @@ std::size_t join_split_words(std::span<const Candidate> candidates, std::span<st
   // taken for.)
   const auto beside = [&](const Candidate& a, const Candidate& b) {
     const int gap = std::max(b.col0 - a.col1, a.col0 - b.col1) - 1;
-    const int shared = std::min(a.row1, b.row1) - std::max(a.row0, b.row0) + 1;
+    const int shared = rows_shared(a, b);
     const int shorter = std::min(rows_of(a), rows_of(b));
     const int longer = std::max(rows_of(a), rows_of(b));
     return gap >= 0 && gap <= gap_cols && 2 * longer <= 3 * shorter &&
@@ -1171,7 +1180,7 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
     const Candidate& outer = candidates[j];
     if (j == index || (outer.predicted != c.predicted && !outer.clipped)) continue;
     const int shared_cols = std::min(c.col1, outer.col1) - std::max(c.col0, outer.col0) + 1;
-    const int shared_rows = std::min(c.row1, outer.row1) - std::max(c.row0, outer.row0) + 1;
+    const int shared_rows = rows_shared(c, outer);
     if (shared_cols <= 0 || shared_rows <= 0) continue;
     const int area = (c.col1 - c.col0 + 1) * (c.row1 - c.row0 + 1);
     const bool mostly_inside =
