@@ -895,7 +895,7 @@ void MarkingDetector::group_parts(std::size_t part_count) {
   const auto stripes_side_by_side = [&](const Part& a, const Part& b) {
     if (b.col0 > a.col1 + stripe_gap_cols || a.col0 > b.col1 + stripe_gap_cols) return false;
     const int shared = rows_shared(a, b);
-    const int shorter = std::min(a.row1 - a.row0, b.row1 - b.row0) + 1;
+    const int shorter = std::min(rows_of(a), rows_of(b));
     return static_cast<float>(shared) >= config_.stripe_min_shared * static_cast<float>(shorter);
   };
   std::int32_t* parent = group_parent_.data();
@@ -1025,7 +1025,7 @@ void MarkingDetector::link_across_strokes(int gap_cols) {
 
 bool MarkingDetector::runs_out_of_view(const Part& stroke, int side, int gap_cols) const {
   if ((touched_edges(stroke) & kOtherEdge) != 0) return true;
-  const int rows = stroke.row1 - stroke.row0 + 1;
+  const int rows = rows_of(stroke);
   for (std::size_t t = 0; t < stroke_count_; ++t) {
     const Part& beyond = strokes_[t];
     const int gap = side > 0 ? beyond.col0 - stroke.col1 - 1 : stroke.col0 - beyond.col1 - 1;
