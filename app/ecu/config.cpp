@@ -1,5 +1,6 @@
 #include "ecu/config.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -10,6 +11,8 @@
 #include <sstream>
 #include <type_traits>
 #include <vector>
+
+#include "platform/files.hpp"
 
 namespace markloop::ecu {
 
@@ -251,26 +254,27 @@ std::string set_config_value(EcuConfig& config, std::string_view key, std::strin
 }
 
 std::string load_config_file(const std::string& path, EcuConfig& config) {
-  std::ifstream in(path);
-  if (!in) return path + ": cannot open: " + std::strerror(errno);
-  std::string line;
-  unsigned number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    std::string_view text(line);
+  std::string content;
+  if (auto ec = platform::read_file_bounded(path.c_str(), kMaxConfigFileBytes, content))
+    return platform::describe_read_error(path, ec, kMaxConfigFileBytes, "a configuration file");
+  std::string_view rest(content);
+  for (unsigned number = 1; !rest.empty(); ++number) {
+    const std::size_t end = std::min(rest.find('\n'), rest.size());
+    const std::string_view line = rest.substr(0, end);
+    rest.remove_prefix(std::min(end + 1, rest.size()));
+    std::string_view text = line;
     if (const auto hash = text.find('#'); hash != std::string_view::npos) text = text.substr(0, hash);
     text = trim(text);
     if (text.empty()) continue;
     const auto equals = text.find('=');
     const std::string where = path + ":" + std::to_string(number) + ": ";
-    if (equals == std::string_view::npos) return where + "expected 'key = value', got '" + line + "'";
+    if (equals == std::string_view::npos) return where + "expected 'key = value', got '" + std::string(line) + "'";
     const std::string_view key = trim(text.substr(0, equals));
     const std::string_view value = trim(text.substr(equals + 1));
     if (key.empty()) return where + "missing key before '='";
     const std::string error = set_config_value(config, key, value);
     if (!error.empty()) return where + error;
   }
-  if (in.bad()) return path + ": read error";
   return {};
 }
 

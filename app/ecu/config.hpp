@@ -3,6 +3,7 @@
 // here runs in the real-time loop.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -101,6 +102,9 @@ struct EcuConfig {
 
 // Sets one key from its text value. Returns an empty string, or what is wrong.
 std::string set_config_value(EcuConfig& config, std::string_view key, std::string_view value);
+
+// Larger files are no configuration (the shipped one is a few kB).
+inline constexpr std::size_t kMaxConfigFileBytes = std::size_t{1} << 20;
 
 // Reads a key = value file ('#' starts a comment, blank lines ignored) into
 // `config`. Returns an empty string, or "FILE:LINE: what is wrong".

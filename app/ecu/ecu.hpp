@@ -55,6 +55,7 @@ struct EcuCounters {
   std::uint64_t database_resets = 0;
   std::uint64_t map_saves = 0;
   std::uint64_t map_save_failures = 0;
+  std::uint64_t can_frames_unused = 0;     // file mode: log frames after the last camera frame
 };
 
 struct EcuFaults {
@@ -93,6 +94,7 @@ class Ecu final : private MatchSink {
   }
   // A frame that was not processed (late: the loop overran) or lost.
   void count_dropped_frames(std::uint64_t n) noexcept { counters_.frames_dropped += n; dropped_in_cycle_ += n; }
+  void count_unused_can_frames(std::uint64_t n) noexcept { counters_.can_frames_unused += n; }
 
   // A frame skipped on purpose (camera.max_rate).
   void count_frame_over_rate() noexcept { ++counters_.frames_over_rate; }

@@ -99,7 +99,7 @@ int run_live_mode(const RunOptions& options) {
     return 2;
   }
   platform::SystemdNotifier systemd = detail::open_systemd_notifier();
-  detail::start_up(ecu, config, quiet);
+  if (!detail::start_up(ecu, config, quiet)) return 2;
 
   const std::array<can::CanFilter, 2> filters = {can::CanFilter::exact(dbc::VehicleOdometry::kId),
                                                  can::CanFilter::exact(dbc::Command::kId)};
@@ -200,14 +200,18 @@ int run_live_mode(const RunOptions& options) {
   }
   (void)systemd.notify("STOPPING=1");
   if (!quiet) std::fprintf(stderr, "markloop: %s: stopping\n", strsignal(stop_signal));
-  detail::shut_down(ecu, config, quiet);
+  const bool saved = detail::shut_down(ecu, config, quiet);
   camera.stop();
   can_bus.flush_tx();
   can_bus.close();
-  (void)can_log.close();
-  detail::report(ecu, options,
-                 std::chrono::duration<double>(platform::monotonic_now() - start).count(), "live");
-  return 0;
+  bool closed = true;
+  if (auto ec = can_log.close()) {
+    std::fprintf(stderr, "markloop: %s: %s\n", config.can.out_log.c_str(), ec.message().c_str());
+    closed = false;
+  }
+  const bool reported = detail::report(
+      ecu, options, std::chrono::duration<double>(platform::monotonic_now() - start).count(), "live");
+  return saved && closed && reported ? 0 : 1;
 }
 
 }  // namespace markloop::ecu

@@ -1,10 +1,12 @@
 // markloop: the ECU program. See --help and markloop.conf.
 #include <cstdio>
 #include <cstring>
+#include <new>
 #include <string>
 #include <string_view>
 
 #include "cli/cli.hpp"
+#include "cli/memory_check.hpp"
 #include "ecu/config.hpp"
 #include "ecu/runner.hpp"
 
@@ -47,8 +49,12 @@ Options (each overrides the same setting of the configuration file):
   --quiet                no summary on stderr
   --help                 this text
 
-Signals: SIGTERM and SIGINT save the map and stop cleanly (exit status 0).
-Exit status: 0 clean end, 1 runtime failure, 2 bad configuration or input.
+Signals: SIGTERM and SIGINT save the map and stop cleanly (exit status 0),
+also while waiting for a pipe's data.
+Exit status: 0 clean end; 1 a failure while running (the map, the summary or
+an output could not be written); 2 bad configuration or input (also an input
+that turns out damaged during the run: the map is then saved as it stood
+after the last whole frame). See docs/inputs-and-faults.md.
 )";
 
 }  // namespace
@@ -112,6 +118,11 @@ int main(int argc, char** argv) {
     }
   }
   if (std::string error = markloop::ecu::validate_config(config); !error.empty()) fail(error);
+  if (std::string error = markloop::cli::database_memory_error(
+          config.engine.database, config.engine.chain.k, "database.landmark_capacity",
+          "database.sequence_capacity");
+      !error.empty())
+    fail(error);
   if (print_config) {
     std::fputs(markloop::ecu::format_config(config).c_str(), stdout);
     return 0;
@@ -136,6 +147,11 @@ int main(int argc, char** argv) {
                   config.calibration.empty() ? "the built-in default" : config.calibration.c_str());
     fail(text);
   }
-  return config.file_mode() ? markloop::ecu::run_file_mode(options)
-                            : markloop::ecu::run_live_mode(options);
+  try {
+    return config.file_mode() ? markloop::ecu::run_file_mode(options)
+                              : markloop::ecu::run_live_mode(options);
+  } catch (const std::bad_alloc&) {
+    // The database's size is checked above; this is the last resort.
+    fail("out of memory while starting (lower database.landmark_capacity or database.sequence_capacity)");
+  }
 }

@@ -7,11 +7,13 @@
 #include <bit>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <span>
 
 #include "ecu/crc32.hpp"
+#include "platform/files.hpp"
 #include "platform/os.hpp"
 
 namespace markloop::ecu {
@@ -115,18 +117,65 @@ bool serialise_payload(const SequenceDatabase& database, std::span<std::uint8_t>
 
 std::string describe(std::error_code ec) { return ec.message(); }
 
+const char* file_type_name(mode_t mode) {
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISFIFO(mode)) return "a FIFO";
+  if (S_ISSOCK(mode)) return "a socket";
+  return "not a regular file";
+}
+
 }  // namespace
 
 MapStore::MapStore(std::string path) : path_(std::move(path)) {
-  if (!path_.empty()) temporary_path_ = path_ + ".tmp";
+  if (!path_.empty()) set_target(path_);
+}
+
+void MapStore::set_target(std::string target) {
+  target_ = std::move(target);
+  temporary_template_ = target_ + ".tmp-XXXXXX";
+}
+
+std::string MapStore::acquire() {
+  if (lock_) return {};
+  struct stat info {};
+  if (::lstat(path_.c_str(), &info) == 0 && S_ISLNK(info.st_mode)) {
+    char* resolved = ::realpath(path_.c_str(), nullptr);
+    if (resolved == nullptr)
+      return "a symbolic link whose target cannot be resolved (" + describe(platform::last_error()) + ")";
+    set_target(resolved);
+    std::free(resolved);
+  }
+  if (::stat(target_.c_str(), &info) == 0) {
+    if (!S_ISREG(info.st_mode))
+      return std::string("is ") + file_type_name(info.st_mode) + ", not a map file: refusing to use it";
+  } else if (errno != ENOENT) {
+    return "cannot stat: " + describe(platform::last_error());
+  }
+  if (temporary_template_.size() >= temporary_path_.size()) return "path too long";
+  const std::string lock_path = target_ + ".lock";
+  int fd = -1;
+  if (auto ec = platform::sys_open_mode(lock_path.c_str(), O_RDWR | O_CREAT | O_NOFOLLOW, 0644, fd))
+    return "cannot create the lock file " + lock_path + ": " + describe(ec);
+  platform::UniqueFd lock(fd);
+  if (auto ec = platform::try_lock_exclusive(fd)) {
+    if (platform::is_would_block(ec))
+      return "in use by another markloop (" + lock_path + " is locked): one process per map";
+    return "cannot lock " + lock_path + ": " + describe(ec);
+  }
+  lock_ = std::move(lock);
+  return {};
 }
 
 std::error_code MapStore::save(const SequenceDatabase& database) noexcept {
   if (path_.empty()) return {};
+  std::memcpy(temporary_path_.data(), temporary_template_.c_str(), temporary_template_.size() + 1);
   const std::error_code ec = write_file(database);
   if (ec) {
     ++save_failures_;
-    (void)platform::sys_unlink(temporary_path_.c_str());
+    if (std::strcmp(temporary_path_.data(), temporary_template_.c_str()) != 0)
+      (void)platform::sys_unlink(temporary_path_.data());
   } else {
     ++saves_;
   }
@@ -157,9 +206,7 @@ std::error_code MapStore::write_file(const SequenceDatabase& database) noexcept 
   put32(&header[60], crc32(std::span<const std::uint8_t>(header.data(), 60)));
 
   int fd = -1;
-  if (auto ec = platform::sys_open_mode(temporary_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                        0644, fd))
-    return ec;
+  if (auto ec = platform::create_unique_file(temporary_path_.data(), 0644, fd)) return ec;
   platform::UniqueFd file(fd);
   if (auto ec = platform::write_all(fd, header.data(), header.size())) return ec;
   // Pass 2: the same bytes again, to the file.
@@ -172,21 +219,35 @@ std::error_code MapStore::write_file(const SequenceDatabase& database) noexcept 
   if (write_error) return write_error;
   if (auto ec = platform::sys_fsync(fd)) return ec;
   file.reset();
-  if (auto ec = platform::sys_rename(temporary_path_.c_str(), path_.c_str())) return ec;
-  return platform::sync_parent_directory(path_.c_str());
+  if (auto ec = platform::sys_rename(temporary_path_.data(), target_.c_str())) return ec;
+  return platform::sync_parent_directory(target_.c_str());
 }
 
 MapLoadResult MapStore::reject(const std::string& what) {
   MapLoadResult result;
   result.outcome = MapLoadOutcome::kRejected;
   result.message = path_ + ": " + what;
-  const std::string aside = path_ + ".corrupt-" + std::to_string(std::time(nullptr));
-  if (auto ec = platform::sys_rename(path_.c_str(), aside.c_str())) {
+  const std::string base = target_ + ".corrupt-" + std::to_string(std::time(nullptr));
+  std::string aside = base;
+  std::error_code ec;
+  for (int n = 1; n <= 1000; ++n) {
+    ec = platform::rename_no_replace(target_.c_str(), aside.c_str());
+    if (ec.value() != EEXIST) break;
+    aside = base + "-" + std::to_string(n);
+  }
+  if (ec) {
     result.message += "; could not set it aside: " + describe(ec);
   } else {
     result.set_aside_path = aside;
     result.message += "; set aside as " + aside;
   }
+  return result;
+}
+
+MapLoadResult MapStore::unusable(const std::string& what) const {
+  MapLoadResult result;
+  result.outcome = MapLoadOutcome::kUnusable;
+  result.message = path_ + ": " + what;
   return result;
 }
 
@@ -196,21 +257,28 @@ MapLoadResult MapStore::load(SequenceDatabase& database, const MatchConfig& matc
     result.message = "no map file configured";
     return result;
   }
+  if (std::string problem = acquire(); !problem.empty()) return unusable(problem);
   int fd = -1;
-  if (auto ec = platform::sys_open_mode(path_.c_str(), O_RDONLY, 0, fd)) {
+  // Non-blocking: a FIFO put in the map's place after acquire() must not
+  // hang the open; fstat() below refuses it.
+  if (auto ec = platform::sys_open_mode(target_.c_str(), O_RDONLY | O_NONBLOCK, 0, fd)) {
     if (ec.value() == ENOENT) {
       result.message = path_ + ": no map yet, starting empty";
       return result;
     }
-    result.outcome = MapLoadOutcome::kRejected;
-    result.message = path_ + ": cannot open: " + describe(ec);
-    return result;  // unreadable is not corrupt: leave it where it is
+    return unusable("cannot open: " + describe(ec) + "; the map is left as it is");
   }
   platform::UniqueFd file(fd);
-  struct stat info {};
-  if (::fstat(fd, &info) != 0) return reject("cannot stat: " + describe(platform::last_error()));
-  const auto file_bytes = static_cast<std::uint64_t>(info.st_size);
+  return read_file(fd, database, match);
+}
 
+MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const MatchConfig& match) {
+  MapLoadResult result;
+  struct stat info {};
+  if (::fstat(fd, &info) != 0) return unusable("cannot stat: " + describe(platform::last_error()));
+  if (!S_ISREG(info.st_mode))
+    return unusable(std::string("is ") + file_type_name(info.st_mode) + ", not a map file: refusing to use it");
+  const auto file_bytes = static_cast<std::uint64_t>(info.st_size);
   std::array<std::uint8_t, kMapHeaderBytes> header{};
   std::size_t got = 0;
   if (auto ec = platform::read_full(fd, header.data(), header.size(), got))
@@ -236,6 +304,14 @@ MapLoadResult MapStore::load(SequenceDatabase& database, const MatchConfig& matc
   if (landmark_count > (std::uint64_t{1} << 32) || sequence_count > (std::uint64_t{1} << 32) ||
       payload_bytes != landmark_count * kMapLandmarkBytes + sequence_count * 4 * k)
     return reject("inconsistent counts in header");
+  const DatabaseStats capacity = database.stats();
+  if (landmark_count > capacity.landmark_capacity || sequence_count > capacity.sequence_capacity)
+    return unusable("holds " + std::to_string(landmark_count) + " landmarks and " +
+                    std::to_string(sequence_count) + " sequences; this database holds " +
+                    std::to_string(capacity.landmark_capacity) + " landmarks and " +
+                    std::to_string(capacity.sequence_capacity) +
+                    " sequences (database.landmark_capacity, database.sequence_capacity): it would "
+                    "lose places at the next save, so the map is left as it is; raise the capacities");
   if (file_bytes != kMapHeaderBytes + payload_bytes)
     return reject("size " + std::to_string(file_bytes) + " bytes, header says " +
                   std::to_string(kMapHeaderBytes + payload_bytes) +

@@ -12,12 +12,22 @@
 //     car_yaw f32, has_car_pose u8 + 3 zero bytes, t f64, station f64), then
 //     the sequences oldest first (k u32 each: landmark index into the above).
 //
-// Saving writes PATH.tmp, fsyncs it, renames it over PATH and fsyncs the
-// directory: a power cut at any point leaves the previous map or the new one,
-// never a mixture. Loading checks everything (size, magic, version, k,
-// checksums, every value and index) before trusting the file; a file that
-// fails is renamed aside to PATH.corrupt-<unix time> and the ECU starts with
-// an empty map.
+// The map is the user's data: nothing here ever damages it.
+// - Only a regular file is a map. A device node, directory or FIFO is
+//   refused before anything is opened for writing; a symbolic link is
+//   followed once at start-up, and the map is then read and replaced at the
+//   link's target (the link stays a link).
+// - One process at a time: loading takes an exclusive lock on PATH.lock for
+//   the life of the store; a second one is refused.
+// - Saving writes a uniquely named PATH.tmp-XXXXXX in the same directory,
+//   fsyncs it, renames it over PATH and fsyncs the directory: a power cut at
+//   any point leaves the previous map or the new one, never a mixture.
+// - Loading checks everything (size, magic, version, k, checksums, every
+//   value and index) before trusting the file; a file that fails is renamed
+//   aside to PATH.corrupt-<unix time>[-N], never over an earlier one, and
+//   the ECU starts with an empty map. A file that cannot be read, or that
+//   holds more than the database can, is left alone and the ECU refuses to
+//   start (it would overwrite or shrink the map at exit).
 #pragma once
 
 #include <array>
@@ -28,6 +38,7 @@
 
 #include "engine/config.hpp"
 #include "engine/sequence_database.hpp"
+#include "platform/unique_fd.hpp"
 
 namespace markloop::ecu {
 
@@ -35,7 +46,10 @@ inline constexpr std::uint32_t kMapVersion = 1;
 inline constexpr std::size_t kMapHeaderBytes = 64;
 inline constexpr std::size_t kMapLandmarkBytes = 52;
 
-enum class MapLoadOutcome : std::uint8_t { kLoaded, kMissing, kRejected };
+// kRejected: damaged, set aside, start empty. kUnusable: left untouched,
+// do not start (not a regular file, unreadable, locked by another process,
+// larger than the database).
+enum class MapLoadOutcome : std::uint8_t { kLoaded, kMissing, kRejected, kUnusable };
 
 struct MapLoadResult {
   MapLoadOutcome outcome = MapLoadOutcome::kMissing;
@@ -52,9 +66,10 @@ class MapStore {
 
   const std::string& path() const { return path_; }
 
-  // Start-up only (allocates for messages). Fills the empty `database` from
-  // the file. Loaded landmarks are moved back in time and distance by more
-  // than the match separation, so that they count as an earlier visit.
+  // Start-up only (allocates for messages). Locks the map, then fills the
+  // empty `database` from the file. Loaded landmarks are moved back in time
+  // and distance by more than the match separation, so that they count as an
+  // earlier visit.
   MapLoadResult load(SequenceDatabase& database, const MatchConfig& match);
 
   // Writes the database (no heap: a fixed buffer). Blocking file I/O: call
@@ -66,10 +81,19 @@ class MapStore {
 
  private:
   std::error_code write_file(const SequenceDatabase& database) noexcept;
+  // Resolves a symbolic link, checks the file type and takes the lock;
+  // empty when the map can be used, else why not.
+  std::string acquire();
+  void set_target(std::string target);
   MapLoadResult reject(const std::string& what);
+  MapLoadResult unusable(const std::string& what) const;
+  MapLoadResult read_file(int fd, SequenceDatabase& database, const MatchConfig& match);
 
-  std::string path_;
-  std::string temporary_path_;
+  std::string path_;            // as configured, for messages
+  std::string target_;          // the file itself (a link's target)
+  std::string temporary_template_;
+  std::array<char, 4096> temporary_path_{};
+  platform::UniqueFd lock_;
   std::array<std::uint8_t, 1 << 16> buffer_{};
   std::uint64_t saves_ = 0;
   std::uint64_t save_failures_ = 0;

@@ -34,15 +34,17 @@ namespace detail {
 platform::UniqueFd open_stop_signals();
 // 0 when none is pending, else the signal number.
 int pending_stop_signal(int signal_fd);
-// Loads the map, then locks memory and raises priority as configured; reports on stderr.
-void start_up(Ecu& ecu, const EcuConfig& config, bool quiet);
+// Loads the map, then locks memory and raises priority as configured; reports
+// on stderr. False when the map must not be used (the program exits 2).
+bool start_up(Ecu& ecu, const EcuConfig& config, bool quiet);
 // The sd_notify channel of $NOTIFY_SOCKET (a no-op without one); a socket
 // that cannot be used is reported on stderr, never fatal.
 platform::SystemdNotifier open_systemd_notifier();
-// Saves the map when configured; reports failures on stderr.
-void shut_down(Ecu& ecu, const EcuConfig& config, bool quiet);
-// Figures of the run on stderr and, when asked, as JSON.
-void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode);
+// Saves the map when configured; false (reported on stderr) when that failed.
+bool shut_down(Ecu& ecu, const EcuConfig& config, bool quiet);
+// Figures of the run on stderr and, when asked, as JSON; false (reported on
+// stderr) when the JSON could not be written.
+bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode);
 }  // namespace detail
 
 }  // namespace markloop::ecu

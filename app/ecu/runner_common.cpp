@@ -1,11 +1,13 @@
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iterator>
 #include <utility>
 
 #include "ecu/runner.hpp"
+#include "platform/files.hpp"
 #include "platform/os.hpp"
 
 namespace markloop::ecu::detail {
@@ -37,8 +39,12 @@ platform::SystemdNotifier open_systemd_notifier() {
   return systemd;
 }
 
-void start_up(Ecu& ecu, const EcuConfig& config, bool quiet) {
+bool start_up(Ecu& ecu, const EcuConfig& config, bool quiet) {
   const MapLoadResult map = ecu.load_map();
+  if (map.outcome == MapLoadOutcome::kUnusable) {
+    std::fprintf(stderr, "markloop: map refused: %s; not starting\n", map.message.c_str());
+    return false;
+  }
   if (map.outcome == MapLoadOutcome::kRejected)
     std::fprintf(stderr, "markloop: map rejected: %s; starting with an empty map\n", map.message.c_str());
   else if (!quiet && !config.map_file.empty())
@@ -60,29 +66,37 @@ void start_up(Ecu& ecu, const EcuConfig& config, bool quiet) {
       std::fprintf(stderr, "markloop: SCHED_FIFO %d not permitted (%s): normal scheduling\n",
                    config.realtime.priority, ec.message().c_str());
   }
+  return true;
 }
 
-void shut_down(Ecu& ecu, const EcuConfig& config, bool quiet) {
-  if (config.map_file.empty() || !config.save_map_on_exit) return;
-  if (auto ec = ecu.save_map())
+bool shut_down(Ecu& ecu, const EcuConfig& config, bool quiet) {
+  if (config.map_file.empty() || !config.save_map_on_exit) return true;
+  if (auto ec = ecu.save_map()) {
     std::fprintf(stderr, "markloop: saving the map to %s failed: %s\n", config.map_file.c_str(),
                  ec.message().c_str());
-  else if (!quiet)
+    return false;
+  }
+  if (!quiet)
     std::fprintf(stderr, "markloop: map saved to %s (%zu landmarks, %zu sequences)\n",
                  config.map_file.c_str(), ecu.engine().database().stats().landmarks,
                  ecu.engine().database().stats().sequences);
+  return true;
 }
 
 namespace {
 double ms(std::int64_t ns) { return double(ns) / 1e6; }
 }  // namespace
 
-void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode) {
+namespace {
+bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode,
+                   std::size_t rss);
+}  // namespace
+
+bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode) {
   const EcuCounters& c = ecu.counters();
   const auto& detect = ecu.detect_time();
   const auto& engine = ecu.engine_time();
   const auto& frame = ecu.frame_time();
-  const auto& latency = ecu.detection_latency();
   const DatabaseStats db = ecu.engine().database().stats();
   const OdometryCounters& odo = ecu.odometry().counters();
   std::size_t rss = 0;
@@ -104,11 +118,18 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                  ms(engine.quantile_ns(0.5)), ms(engine.quantile_ns(0.99)),
                  ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)), ms(frame.max_ns()));
     std::fprintf(stderr,
-                 "markloop: odometry %llu accepted, %llu bad CRC, %llu bad counter, %llu timeouts; "
-                 "%llu foreign frames; database %zu landmarks, %zu sequences; RSS %.1f MiB\n",
+                 "markloop: odometry %llu accepted, %llu bad CRC, %llu bad counter, %llu wrong length, "
+                 "%llu out of range, %llu invalid signals, %llu out of order, %llu timeouts; "
+                 "%llu malformed frames on our ids, %llu commands rejected, %llu foreign frames, "
+                 "%llu log frames after the last camera frame; "
+                 "database %zu landmarks, %zu sequences; RSS %.1f MiB\n",
                  (unsigned long long)odo.accepted, (unsigned long long)odo.bad_crc,
-                 (unsigned long long)odo.bad_counter, (unsigned long long)odo.timeouts,
-                 (unsigned long long)c.foreign_frames, db.landmarks, db.sequences,
+                 (unsigned long long)odo.bad_counter, (unsigned long long)odo.wrong_length,
+                 (unsigned long long)odo.out_of_range, (unsigned long long)odo.invalid_signals,
+                 (unsigned long long)odo.out_of_order, (unsigned long long)odo.timeouts,
+                 (unsigned long long)c.bad_frames, (unsigned long long)c.commands_rejected,
+                 (unsigned long long)c.foreign_frames, (unsigned long long)c.can_frames_unused,
+                 db.landmarks, db.sequences,
                  double(rss) / (1024.0 * 1024.0));
     const perception::DetectorCounters& d = ecu.detector().counters();
     std::fprintf(stderr,
@@ -146,18 +167,36 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                  (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
                  (unsigned long long)e.matches, (unsigned long long)e.closures_extended);
   }
-  if (options.summary_json.empty()) return;
-  std::FILE* out = std::fopen(options.summary_json.c_str(), "w");
+  return write_summary(ecu, options, wall_seconds, mode, rss);
+}
+
+namespace {
+
+bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode,
+                   std::size_t rss) {
+  if (options.summary_json.empty()) return true;
+  const EcuCounters& c = ecu.counters();
+  const auto& detect = ecu.detect_time();
+  const auto& engine = ecu.engine_time();
+  const auto& frame = ecu.frame_time();
+  const auto& latency = ecu.detection_latency();
+  const DatabaseStats db = ecu.engine().database().stats();
+  const OdometryCounters& odo = ecu.odometry().counters();
+  char* text = nullptr;
+  std::size_t length = 0;
+  std::FILE* out = ::open_memstream(&text, &length);
   if (out == nullptr) {
-    std::fprintf(stderr, "markloop: cannot write %s: %s\n", options.summary_json.c_str(),
-                 std::strerror(errno));
-    return;
+    std::fprintf(stderr, "markloop: %s: out of memory\n", options.summary_json.c_str());
+    return false;
   }
   std::fprintf(out,
                "{\"mode\": \"%s\", \"wall_s\": %.3f, \"frames_processed\": %llu, \"frames_dropped\": %llu,"
                " \"overruns\": %llu, \"detections\": %llu, \"loop_detections\": %llu,"
                " \"frames_without_pose\": %llu, \"frames_blind\": %llu, \"pose_losses\": %llu,"
-               " \"foreign_frames\": %llu,"
+               " \"foreign_frames\": %llu, \"bad_frames\": %llu, \"commands_rejected\": %llu,"
+               " \"can_frames_unused\": %llu, \"odometry_wrong_length\": %llu,"
+               " \"odometry_out_of_range\": %llu, \"odometry_invalid_signals\": %llu,"
+               " \"odometry_out_of_order\": %llu,"
                " \"send_errors\": %llu, \"odometry_accepted\": %llu, \"odometry_bad_crc\": %llu,"
                " \"odometry_bad_counter\": %llu, \"odometry_timeouts\": %llu,"
                " \"detect_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
@@ -170,7 +209,11 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                (unsigned long long)c.detections, (unsigned long long)c.loop_detections,
                (unsigned long long)c.frames_without_pose, (unsigned long long)c.frames_blind,
                (unsigned long long)c.pose_losses,
-               (unsigned long long)c.foreign_frames, (unsigned long long)c.send_errors,
+               (unsigned long long)c.foreign_frames, (unsigned long long)c.bad_frames,
+               (unsigned long long)c.commands_rejected, (unsigned long long)c.can_frames_unused,
+               (unsigned long long)odo.wrong_length, (unsigned long long)odo.out_of_range,
+               (unsigned long long)odo.invalid_signals, (unsigned long long)odo.out_of_order,
+               (unsigned long long)c.send_errors,
                (unsigned long long)odo.accepted, (unsigned long long)odo.bad_crc,
                (unsigned long long)odo.bad_counter, (unsigned long long)odo.timeouts,
                ms(detect.quantile_ns(0.5)), ms(detect.quantile_ns(0.99)), ms(detect.max_ns()),
@@ -208,7 +251,19 @@ void report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
     std::fprintf(out, "%s\"%s\": %llu", i > 0 ? ", " : "", engine_counters[i].first,
                  (unsigned long long)engine_counters[i].second);
   std::fprintf(out, "}}\n");
-  std::fclose(out);
+  const bool formatted = std::fclose(out) == 0;
+  const std::error_code ec = formatted ? platform::write_file_replacing(options.summary_json.c_str(),
+                                                                       std::string_view(text, length))
+                                       : std::make_error_code(std::errc::not_enough_memory);
+  std::free(text);
+  if (ec) {
+    std::fprintf(stderr, "markloop: %s: cannot write the summary: %s\n", options.summary_json.c_str(),
+                 ec.message().c_str());
+    return false;
+  }
+  return true;
 }
+
+}  // namespace
 
 }  // namespace markloop::ecu::detail

@@ -84,6 +84,14 @@ SequenceDatabase::SequenceDatabase(const DatabaseConfig& config, const MatchConf
   slot_mask_ = static_cast<std::uint32_t>(slot_count - 1);
 }
 
+std::size_t SequenceDatabase::bytes_needed(const DatabaseConfig& config, unsigned k) {
+  const std::size_t landmarks = power_of_two_at_least(config.landmark_capacity);
+  const std::size_t sequences = power_of_two_at_least(config.sequence_capacity);
+  const std::size_t slots = power_of_two_at_least(2 * sequences);
+  return landmarks * sizeof(Landmark) + sequences * (k * sizeof(LandmarkId) + 3 * sizeof(std::uint32_t)) +
+         slots * sizeof(Slot);
+}
+
 void SequenceDatabase::clear() {
   while (oldest_sequence_ < sequences_added_) evict_oldest_sequence();
   oldest_landmark_id_ = next_landmark_id_;

@@ -75,6 +75,10 @@ class SequenceDatabase {
   // Capacities are rounded up to powers of two.
   SequenceDatabase(const DatabaseConfig& config, const MatchConfig& match, unsigned k);
 
+  // Bytes the constructor allocates for `config` and `k`, so that a caller
+  // can refuse a size the machine cannot hold before asking for it.
+  static std::size_t bytes_needed(const DatabaseConfig& config, unsigned k);
+
   SequenceDatabase(const SequenceDatabase&) = delete;
   SequenceDatabase& operator=(const SequenceDatabase&) = delete;
 

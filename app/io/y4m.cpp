@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <charconv>
+#include <cstdio>
 #include <cstring>
 #include <string_view>
 
@@ -14,19 +15,22 @@ constexpr std::string_view kFrameTag = "FRAME";
 constexpr std::size_t kMaxLine = 1024;
 constexpr int kMaxDimension = 16384;
 
-// Reads one line (without '\n') into buf; false on EOF/error or overlong.
-bool read_line(std::FILE* f, char* buf, std::size_t capacity, std::size_t& length, bool& at_eof) {
+enum class LineRead : std::uint8_t { kLine, kEnd, kTooLong, kTruncated, kStopped, kError };
+
+// Reads one line (without '\n') into buf.
+LineRead read_line(platform::InputStream& in, char* buf, std::size_t capacity, std::size_t& length) {
   length = 0;
-  at_eof = false;
   for (;;) {
-    const int c = std::fgetc(f);
-    if (c == EOF) {
-      at_eof = length == 0;
-      return false;
+    char c = 0;
+    switch (in.get(c)) {
+      case platform::InputStream::Status::kOk: break;
+      case platform::InputStream::Status::kEnd: return length == 0 ? LineRead::kEnd : LineRead::kTruncated;
+      case platform::InputStream::Status::kStopped: return LineRead::kStopped;
+      case platform::InputStream::Status::kError: return LineRead::kError;
     }
-    if (c == '\n') return true;
-    if (length + 1 >= capacity) return false;
-    buf[length++] = static_cast<char>(c);
+    if (c == '\n') return LineRead::kLine;
+    if (length + 1 >= capacity) return LineRead::kTooLong;
+    buf[length++] = c;
   }
 }
 
@@ -69,15 +73,21 @@ bool Y4mReader::open(const std::string& path) {
   error_.clear();
   frames_read_ = 0;
   format_ = {};
-  file_ = std::fopen(path.c_str(), "rb");
-  if (!file_) return fail(std::strerror(errno));
+  if (auto ec = stream_.open(path.c_str()))
+    return fail(ec.value() == EISDIR ? "is a directory, not a YUV4MPEG2 stream" : "cannot open: " + ec.message());
 
   char line[kMaxLine];
   std::size_t length = 0;
-  bool at_eof = false;
-  if (!read_line(file_, line, sizeof line, length, at_eof))
-    return fail(at_eof ? "empty file, not a YUV4MPEG2 stream" : "header line missing or too long");
-  std::string_view header(line, length);
+  switch (read_line(stream_, line, sizeof line, length)) {
+    case LineRead::kLine: break;
+    case LineRead::kEnd: return fail("empty file, not a YUV4MPEG2 stream");
+    case LineRead::kError: return fail("read error: " + stream_.error().message());
+    default: return fail("header line missing or too long");
+  }
+  return parse_header(std::string_view(line, length));
+}
+
+bool Y4mReader::parse_header(std::string_view header) {
   if (header.substr(0, kMagic.size()) != kMagic || (header.size() > kMagic.size() && header[kMagic.size()] != ' '))
     return fail("not a YUV4MPEG2 stream (header does not start with YUV4MPEG2)");
   header.remove_prefix(kMagic.size());
@@ -100,11 +110,7 @@ bool Y4mReader::open(const std::string& path) {
         return fail("bad height '" + std::string(value) + "'");
       have_height = true;
     } else if (tag == 'F') {
-      const std::size_t colon = value.find(':');
-      if (colon == std::string_view::npos || !parse_int(value.substr(0, colon), format_.fps_numerator) ||
-          !parse_int(value.substr(colon + 1), format_.fps_denominator) || format_.fps_numerator <= 0 ||
-          format_.fps_denominator <= 0)
-        return fail("bad frame rate '" + std::string(value) + "'");
+      if (!parse_frame_rate(value)) return false;
     } else if (tag == 'C') {
       if (value == "mono") format_.chroma = Y4mChroma::kMono;
       else if (value == "420" || value == "420jpeg" || value == "420mpeg2" || value == "420paldv")
@@ -121,37 +127,63 @@ bool Y4mReader::open(const std::string& path) {
   return true;
 }
 
-void Y4mReader::close() {
-  if (file_) std::fclose(file_);
-  file_ = nullptr;
+bool Y4mReader::parse_frame_rate(std::string_view value) {
+  const std::size_t colon = value.find(':');
+  if (colon == std::string_view::npos || !parse_int(value.substr(0, colon), format_.fps_numerator) ||
+      !parse_int(value.substr(colon + 1), format_.fps_denominator) || format_.fps_numerator <= 0 ||
+      format_.fps_denominator <= 0)
+    return fail("bad frame rate '" + std::string(value) + "'");
+  const double fps = double(format_.fps_numerator) / format_.fps_denominator;
+  if (fps < kMinFps || fps > kMaxFps) {
+    char text[160];
+    std::snprintf(text, sizeof text, "frame rate %.*s (%g frames a second) is outside %g to %g",
+                  static_cast<int>(value.size()), value.data(), fps, kMinFps, kMaxFps);
+    return fail(text);
+  }
+  return true;
 }
 
+void Y4mReader::close() { stream_.close(); }
+
 Y4mRead Y4mReader::read_frame(std::span<std::uint8_t> luma) {
-  if (!file_) {
+  if (!stream_.is_open()) {
     error_ = path_ + ": not open";
     return Y4mRead::kError;
   }
-  const auto frame_error = [&](const char* what) {
+  const auto frame_error = [&](const std::string& what) {
     error_ = path_ + ": frame " + std::to_string(frames_read_) + ": " + what;
     return Y4mRead::kError;
   };
   if (luma.size() != format_.luma_bytes()) return frame_error("destination has the wrong size");
   char line[kMaxLine];
   std::size_t length = 0;
-  bool at_eof = false;
-  if (!read_line(file_, line, sizeof line, length, at_eof)) {
-    if (at_eof && !std::ferror(file_)) return Y4mRead::kEnd;
-    return frame_error("FRAME line missing, truncated or too long");
+  switch (read_line(stream_, line, sizeof line, length)) {
+    case LineRead::kLine: break;
+    case LineRead::kEnd: return Y4mRead::kEnd;
+    case LineRead::kStopped: return Y4mRead::kStopped;
+    case LineRead::kError: return frame_error("read error: " + stream_.error().message());
+    default: return frame_error("FRAME line missing, truncated or too long");
   }
   const std::string_view tag(line, length);
   if (tag.substr(0, kFrameTag.size()) != kFrameTag ||
       (tag.size() > kFrameTag.size() && tag[kFrameTag.size()] != ' '))
     return frame_error("expected a FRAME line");
-  if (std::fread(luma.data(), 1, luma.size(), file_) != luma.size())
-    return frame_error("truncated (luma plane incomplete)");
-  const std::size_t chroma = format_.chroma_bytes();
-  if (chroma > 0 && std::fseek(file_, static_cast<long>(chroma), SEEK_CUR) != 0)
-    return frame_error("truncated (chroma planes incomplete)");
+  const auto read_plane = [&](std::uint8_t* data, std::size_t size, const char* truncated) {
+    std::size_t got = 0;
+    switch (stream_.read(data, size, got)) {
+      case platform::InputStream::Status::kOk: return Y4mRead::kFrame;
+      case platform::InputStream::Status::kEnd: return frame_error(truncated);
+      case platform::InputStream::Status::kStopped: return Y4mRead::kStopped;
+      case platform::InputStream::Status::kError: break;
+    }
+    return frame_error("read error: " + stream_.error().message());
+  };
+  if (const Y4mRead r = read_plane(luma.data(), luma.size(), "truncated (luma plane incomplete)");
+      r != Y4mRead::kFrame)
+    return r;
+  if (const Y4mRead r = read_plane(nullptr, format_.chroma_bytes(), "truncated (chroma planes incomplete)");
+      r != Y4mRead::kFrame)
+    return r;
   ++frames_read_;
   return Y4mRead::kFrame;
 }

@@ -5,7 +5,8 @@
 //
 // The reader hands out the luma (Y) plane only: markloop works on grey
 // frames. It accepts mono, 420 (all siting variants), 422 and 444 8-bit
-// streams, skips the chroma planes and never allocates after open().
+// streams at 0.1 to 1000 frames a second, skips the chroma planes (reading
+// them: a pipe cannot seek) and never allocates after open().
 #pragma once
 
 #include <cstddef>
@@ -13,8 +14,17 @@
 #include <cstdio>
 #include <span>
 #include <string>
+#include <string_view>
+
+#include "platform/files.hpp"
 
 namespace markloop::io {
+
+// Frame rates a camera file may declare: outside them, the time between
+// frames (and all the ECU does in it, such as its Status cycles) would be
+// absurd.
+inline constexpr double kMinFps = 0.1;
+inline constexpr double kMaxFps = 1000.0;
 
 enum class Y4mChroma : std::uint8_t { kMono, k420, k422, k444 };
 
@@ -30,7 +40,8 @@ struct Y4mFormat {
   double frame_period_s() const { return double(fps_denominator) / fps_numerator; }
 };
 
-enum class Y4mRead : std::uint8_t { kFrame, kEnd, kError };
+// kStopped: the stop fd became readable while waiting for a pipe's data.
+enum class Y4mRead : std::uint8_t { kFrame, kEnd, kError, kStopped };
 
 class Y4mReader {
  public:
@@ -45,6 +56,8 @@ class Y4mReader {
   // "PATH: frames are WxH, the camera's WxH").
   bool open(const std::string& path, int width, int height);
   void close();
+  // Waits for a pipe's data also end when `stop_fd` (a signalfd) is readable.
+  void set_stop_fd(int stop_fd) { stream_.set_stop_fd(stop_fd); }
 
   const Y4mFormat& format() const { return format_; }
   // Frames read so far (the index of the next frame).
@@ -59,7 +72,9 @@ class Y4mReader {
 
  private:
   bool fail(const std::string& what);
-  std::FILE* file_ = nullptr;
+  bool parse_header(std::string_view header);
+  bool parse_frame_rate(std::string_view value);
+  platform::InputStream stream_;
   std::string path_;
   std::string error_;
   Y4mFormat format_;

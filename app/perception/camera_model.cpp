@@ -146,6 +146,23 @@ bool read_number(const cv::FileNode& node, double& out) {
   return std::isfinite(out);
 }
 
+// Larger coefficients describe no lens: the distortion polynomial would fold
+// the image over itself.
+constexpr double kMaxDistortion = 100.0;
+
+// True when some of the road where markings are detected lies in the image.
+bool sees_road(const CameraModel& model) {
+  for (double ahead = 5.0; ahead <= 20.0; ahead += 1.0) {
+    for (double side = -3.0; side <= 3.0; side += 0.5) {
+      Eigen::Vector2d pixel;
+      if (model.ground_to_image(Eigen::Vector2d(ahead, side), pixel) && pixel.allFinite() && pixel.x() >= 0 &&
+          pixel.y() >= 0 && pixel.x() < model.width() && pixel.y() < model.height())
+        return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 std::optional<CameraModel> load_camera_model(const std::string& path, std::string& error) {
@@ -174,7 +191,11 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
         return fail("ground_homography must be a 3x3 matrix");
       if (!H.allFinite() || std::abs(H.determinant()) < 1e-15)
         return fail("ground_homography is singular or not finite");
-      return CameraModel::homography(w, h, H);
+      CameraModel model = CameraModel::homography(w, h, H);
+      if (!sees_road(model))
+        return fail("the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of "
+                    "its axis, falls inside the image (check ground_homography)");
+      return model;
     }
 
     Eigen::Matrix<double, 3, 3, Eigen::RowMajor> K;
@@ -193,6 +214,10 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
       if (d.total() != 4 && d.total() != 5)
         return fail("distortion_coefficients must hold 4 or 5 values (k1 k2 p1 p2 [k3])");
       for (std::size_t i = 0; i < d.total(); ++i) k.distortion[i] = d.at<double>(static_cast<int>(i));
+      for (const double v : k.distortion)
+        if (!std::isfinite(v) || std::abs(v) > kMaxDistortion)
+          return fail("distortion_coefficients must be finite numbers within +-" +
+                      std::to_string(int(kMaxDistortion)));
     }
     CameraMounting m;
     double pitch = 0, roll = 0, yaw = 0;
@@ -209,7 +234,11 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
     m.pitch_rad = pitch * kDegree;
     m.roll_rad = roll * kDegree;
     m.yaw_rad = yaw * kDegree;
-    return CameraModel::pinhole(w, h, k, m);
+    CameraModel model = CameraModel::pinhole(w, h, k, m);
+    if (!sees_road(model))
+      return fail("the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of its "
+                  "axis, falls inside the image (check camera_matrix and the mount angles)");
+    return model;
   } catch (const std::exception& e) {
     error = path + ": " + e.what();
     return std::nullopt;

@@ -1,9 +1,8 @@
 #include "perception/storage_file.hpp"
 
-#include <cerrno>
-#include <cstring>
-#include <fstream>
 #include <string_view>
+
+#include "platform/files.hpp"
 
 namespace markloop::perception {
 namespace {
@@ -24,29 +23,80 @@ std::size_t first_line_with_long_dashes(std::string_view text) {
   return 0;
 }
 
+// OpenCV's parsers descend recursively, one call per level, and overflow the
+// stack on a document nested a few ten thousand levels deep. A calibration is
+// a few levels deep: anything deeper than kMaxStorageNesting is refused,
+// counting YAML/JSON brackets and braces (comments too: a parser that skips
+// them could be fooled about where one starts), YAML block sequences opened
+// on one line ("- - -"), indentation and XML elements. Returns the first line that
+// goes too deep, 0 when none does.
+// YAML block sequences opened at the start of a line ("- - - x") and its
+// indentation: true when they go deeper than the limit.
+bool line_start_too_deep(std::string_view text, std::size_t begin) {
+  const auto blank = [&](std::size_t j) { return j < text.size() && (text[j] == ' ' || text[j] == '\t'); };
+  std::size_t j = begin;
+  while (blank(j)) ++j;
+  int dashes = 0;
+  while (j < text.size() && text[j] == '-' && blank(j + 1)) {
+    ++dashes;
+    for (++j; blank(j);) ++j;
+  }
+  return dashes > kMaxStorageNesting || j - begin > 8 * std::size_t{kMaxStorageNesting};
+}
+
+std::size_t first_line_too_deep(std::string_view text) {
+  std::size_t line = 1;
+  int brackets = 0, elements = 0;
+  char quote = 0;
+  if (line_start_too_deep(text, 0)) return line;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    const char next = i + 1 < text.size() ? text[i + 1] : '\0';
+    if (c == '\n') {
+      ++line;
+      if (quote == '\'') quote = 0;  // a calibration's single-quoted scalars fit on a line
+      if (line_start_too_deep(text, i + 1)) return line;
+      continue;
+    }
+    if (quote != 0) {
+      if (c == '\\' && quote == '"') ++i;
+      else if (c == quote) quote = 0;
+      continue;
+    }
+    switch (c) {
+      case '"': case '\'': quote = c; break;
+      case '[': case '{': ++brackets; break;
+      case ']': case '}': --brackets; break;
+      case '<':
+        if (next == '/') --elements;
+        else if (next != '?' && next != '!') ++elements;
+        break;
+      case '/':
+        if (next == '>') --elements;
+        break;
+      default: break;
+    }
+    if (brackets > kMaxStorageNesting || elements > kMaxStorageNesting) return line;
+  }
+  return 0;
+}
+
 }  // namespace
 
 std::optional<cv::FileStorage> open_storage_file(const std::string& path, std::string& error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    error = path + ": cannot open: " + std::strerror(errno);
-    return std::nullopt;
-  }
-  std::string text(kMaxStorageFileBytes + 1, '\0');
-  in.read(text.data(), static_cast<std::streamsize>(text.size()));
-  if (in.bad()) {
-    error = path + ": read error";
-    return std::nullopt;
-  }
-  text.resize(static_cast<std::size_t>(in.gcount()));
-  if (text.size() > kMaxStorageFileBytes) {
-    error = path + ": larger than " + std::to_string(kMaxStorageFileBytes >> 20) +
-            " MiB: not a calibration file";
+  std::string text;
+  if (auto ec = platform::read_file_bounded(path.c_str(), kMaxStorageFileBytes, text)) {
+    error = platform::describe_read_error(path, ec, kMaxStorageFileBytes, "a calibration file");
     return std::nullopt;
   }
   if (const std::size_t line = first_line_with_long_dashes(text); line != 0) {
     error = path + ":" + std::to_string(line) +
             ": a line beginning with \"----\" (a YAML document marker is \"---\" alone)";
+    return std::nullopt;
+  }
+  if (const std::size_t line = first_line_too_deep(text); line != 0) {
+    error = path + ":" + std::to_string(line) + ": nested more than " + std::to_string(kMaxStorageNesting) +
+            " levels deep: not a calibration file";
     return std::nullopt;
   }
   cv::FileStorage fs(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);

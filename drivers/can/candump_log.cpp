@@ -226,8 +226,7 @@ std::error_code CandumpLogWriter::close() noexcept {
 
 std::error_code CandumpLogReader::open(const std::string& path) noexcept {
   close();
-  file_ = std::fopen(path.c_str(), "re");
-  if (file_ == nullptr) return platform::last_error();
+  if (auto ec = stream_.open(path.c_str())) return ec;
   path_ = path;
   line_ = 0;
   failed_ = false;
@@ -235,37 +234,35 @@ std::error_code CandumpLogReader::open(const std::string& path) noexcept {
   return {};
 }
 
-void CandumpLogReader::close() noexcept {
-  if (file_ != nullptr) std::fclose(file_);
-  file_ = nullptr;
-}
+void CandumpLogReader::close() noexcept { stream_.close(); }
 
 CandumpLogReader::Status CandumpLogReader::next(CandumpRecord& out) {
   if (failed_) return Status::Error;
-  if (file_ == nullptr) {
+  if (!stream_.is_open()) {
     failed_ = true;
     error_ = path_ + ": not open";
     return Status::Error;
   }
   line_text_.clear();
-  int c = 0;
-  bool any = false;
-  while ((c = std::fgetc(file_)) != EOF) {
-    any = true;
+  char c = 0;
+  platform::InputStream::Status read = platform::InputStream::Status::kOk;
+  while ((read = stream_.get(c)) == platform::InputStream::Status::kOk) {
     if (c == '\n') break;
-    line_text_.push_back(static_cast<char>(c));
-    if (line_text_.size() > 256) break;
+    line_text_.push_back(c);
+    if (line_text_.size() > kMaxLine) break;
   }
-  if (std::ferror(file_)) {
+  if (read == platform::InputStream::Status::kStopped) return Status::Stopped;
+  if (read == platform::InputStream::Status::kError) {
     failed_ = true;
-    error_ = path_ + ":" + std::to_string(line_ + 1) + ": read error: " + std::strerror(errno);
+    error_ = path_ + ":" + std::to_string(line_ + 1) + ": read error: " + stream_.error().message();
     return Status::Error;
   }
-  if (!any) return Status::End;
+  if (read == platform::InputStream::Status::kEnd && line_text_.empty()) return Status::End;
   ++line_;
   CandumpLineError err;
-  if (line_text_.size() > 256) {
-    err = {257, "line too long"};
+  if (line_text_.size() > kMaxLine) {
+    err = {kMaxLine + 1, "line too long"};
+    line_text_.resize(kMaxLine);
   } else if (parse_candump_line(line_text_, out, err)) {
     return Status::Frame;
   }

@@ -17,6 +17,7 @@
 #include <system_error>
 
 #include "drivers/can/can_frame.hpp"
+#include "platform/files.hpp"
 #include "platform/unique_fd.hpp"
 
 namespace markloop::can {
@@ -79,29 +80,36 @@ class CandumpLogWriter final : public CanFrameSink {
   std::uint64_t write_errors_ = 0;
 };
 
-// Reads a candump log one frame at a time. Not for the real-time loop (it
-// uses std::string for the line and the error message).
+// Reads a candump log (a file or a pipe) one frame at a time. Not for the
+// real-time loop (it uses std::string for the line and the error message).
 class CandumpLogReader {
  public:
-  enum class Status { Frame, End, Error };
+  // Stopped: the stop fd became readable while waiting for a pipe's data.
+  enum class Status { Frame, End, Error, Stopped };
 
   CandumpLogReader() = default;
   ~CandumpLogReader() { close(); }
   CandumpLogReader(const CandumpLogReader&) = delete;
   CandumpLogReader& operator=(const CandumpLogReader&) = delete;
 
+  // Directories are refused (EISDIR).
   std::error_code open(const std::string& path) noexcept;
   void close() noexcept;
+  // Waits for a pipe's data also end when `stop_fd` (a signalfd) is readable.
+  void set_stop_fd(int stop_fd) noexcept { stream_.set_stop_fd(stop_fd); }
 
   // Frame: `out` holds the next frame. End: no more lines. Error: error()
   // says "file:line:column: what (line text)"; further calls return Error.
   Status next(CandumpRecord& out);
   const std::string& error() const { return error_; }
   std::size_t line_number() const { return line_; }
+  const std::string& path() const { return path_; }
 
  private:
-  std::FILE* file_ = nullptr;
+  platform::InputStream stream_;
   std::string path_;
+  // Longer lines are no candump line (the longest is kCandumpMaxLine).
+  static constexpr std::size_t kMaxLine = 256;
   std::string line_text_;
   std::string error_;
   std::size_t line_ = 0;

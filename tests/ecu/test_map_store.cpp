@@ -2,6 +2,10 @@
 #include <catch2/catch_test_macros.hpp>
 #include <catch2/matchers/catch_matchers_string.hpp>
 
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <array>
 #include <filesystem>
@@ -68,6 +72,13 @@ void write_bytes(const std::string& path, const std::vector<char>& bytes, std::s
   std::ofstream(path, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(count));
 }
 
+std::size_t files_named(const std::string& dir, const std::string& part) {
+  std::size_t n = 0;
+  for (const auto& entry : fs::directory_iterator(dir))
+    if (entry.path().filename().string().find(part) != std::string::npos) ++n;
+  return n;
+}
+
 std::size_t count_set_aside(const std::string& dir) {
   std::size_t n = 0;
   for (const auto& entry : fs::directory_iterator(dir))
@@ -85,7 +96,7 @@ TEST_CASE("a saved map loads back with the same landmarks and sequences") {
   ecu::MapStore store(dir + "/map.bin");
   REQUIRE_FALSE(store.save(saved));
   CHECK(store.saves() == 1);
-  CHECK_FALSE(fs::exists(dir + "/map.bin.tmp"));
+  CHECK(files_named(dir, ".tmp") == 0);
 
   SequenceDatabase loaded(DatabaseConfig{}, match, kK);
   const ecu::MapLoadResult result = store.load(loaded, match);
@@ -132,18 +143,26 @@ TEST_CASE("an empty map and a missing file") {
   CHECK_FALSE(none.save(db));
 }
 
-TEST_CASE("a map larger than the database keeps its newest part") {
+TEST_CASE("a map larger than the database is refused, naming both sizes, and left untouched") {
   const std::string dir = fresh_dir("larger");
   const MatchConfig match;
   SequenceDatabase big(DatabaseConfig{}, match, kK);
   fill(big, 200);
-  ecu::MapStore store(dir + "/map.bin");
-  REQUIRE_FALSE(store.save(big));
+  const std::string path = dir + "/map.bin";
+  {
+    ecu::MapStore store(path);
+    REQUIRE_FALSE(store.save(big));
+  }
+  const std::vector<char> before = read_bytes(path);
   SequenceDatabase small(small_capacity(), match, kK);
+  ecu::MapStore store(path);
   const auto result = store.load(small, match);
-  REQUIRE(result.outcome == ecu::MapLoadOutcome::kLoaded);
-  CHECK(result.landmarks == 64);
-  CHECK(small.stats().sequences <= 64);
+  REQUIRE(result.outcome == ecu::MapLoadOutcome::kUnusable);
+  CHECK_THAT(result.message, ContainsSubstring("holds 200 landmarks and 197 sequences"));
+  CHECK_THAT(result.message, ContainsSubstring("this database holds 64 landmarks and 64 sequences"));
+  CHECK(small.stats().landmarks == 0);
+  CHECK(read_bytes(path) == before);
+  CHECK(count_set_aside(dir) == 0);
 }
 
 TEST_CASE("a map truncated at every byte is rejected, set aside, and leaves an empty database") {
@@ -233,7 +252,7 @@ TEST_CASE("foreign files, other versions and another k are rejected with the rea
   CHECK_THAT(result.message, ContainsSubstring("k = 4, this ECU uses k = 5"));
 }
 
-TEST_CASE("a failed save leaves the previous map intact") {
+TEST_CASE("a failed save leaves the previous map intact and no temporary behind") {
   const std::string dir = fresh_dir("atomic");
   const std::string path = dir + "/map.bin";
   const MatchConfig match;
@@ -244,16 +263,111 @@ TEST_CASE("a failed save leaves the previous map intact") {
   const std::vector<char> before = read_bytes(path);
 
   // A power cut mid-save leaves a partial temporary file: it is never read.
-  write_bytes(path + ".tmp", before, before.size() / 2);
+  write_bytes(path + ".tmp-ABCDEF", before, before.size() / 2);
   SequenceDatabase db(small_capacity(), match, kK);
   CHECK(store.load(db, match).outcome == ecu::MapLoadOutcome::kLoaded);
+  fs::remove(path + ".tmp-ABCDEF");
 
-  // The temporary file cannot be created (a directory stands in its way).
-  fs::remove(path + ".tmp");
-  fs::create_directory(path + ".tmp");
+  // The disk fills up mid-save (a file size limit stands in for it, root or not).
   SequenceDatabase second(small_capacity(), match, kK);
   fill(second, 20, 7);
-  CHECK(store.save(second));
+  struct sigaction ignore {}, previous {};
+  ignore.sa_handler = SIG_IGN;
+  REQUIRE(::sigaction(SIGXFSZ, &ignore, &previous) == 0);
+  rlimit limit{}, saved_limit{};
+  REQUIRE(::getrlimit(RLIMIT_FSIZE, &saved_limit) == 0);
+  limit = saved_limit;
+  limit.rlim_cur = 256;
+  REQUIRE(::setrlimit(RLIMIT_FSIZE, &limit) == 0);
+  const std::error_code failed = store.save(second);
+  ::setrlimit(RLIMIT_FSIZE, &saved_limit);
+  ::sigaction(SIGXFSZ, &previous, nullptr);
+  CHECK(failed);
   CHECK(store.save_failures() == 1);
   CHECK(read_bytes(path) == before);
+  CHECK(files_named(dir, ".tmp") == 0);
+}
+
+TEST_CASE("what is not a regular file is never a map, and is left as it is") {
+  const std::string dir = fresh_dir("not-regular");
+  const MatchConfig match;
+  const auto refused = [&](const std::string& path, const char* kind) {
+    SequenceDatabase db(small_capacity(), match, kK);
+    ecu::MapStore store(path);
+    const auto result = store.load(db, match);
+    INFO(result.message);
+    CHECK(result.outcome == ecu::MapLoadOutcome::kUnusable);
+    CHECK_THAT(result.message, ContainsSubstring(kind));
+  };
+  fs::create_directory(dir + "/directory");
+  refused(dir + "/directory", "is a directory");
+  REQUIRE(::mkfifo((dir + "/fifo").c_str(), 0644) == 0);
+  refused(dir + "/fifo", "is a FIFO");  // and does not wait for a writer
+  fs::create_symlink("/dev/null", dir + "/device");
+  refused(dir + "/device", "is a character device");
+  CHECK(fs::is_character_file("/dev/null"));
+  CHECK(fs::is_directory(dir + "/directory"));
+  CHECK(fs::is_fifo(dir + "/fifo"));
+  CHECK(count_set_aside(dir) == 0);
+}
+
+TEST_CASE("a map behind a symbolic link is read and replaced at the link's target") {
+  const std::string dir = fresh_dir("symlink");
+  const MatchConfig match;
+  fs::create_directories(dir + "/storage");
+  SequenceDatabase saved(small_capacity(), match, kK);
+  fill(saved, 8);
+  {
+    ecu::MapStore target(dir + "/storage/map.bin");
+    REQUIRE_FALSE(target.save(saved));
+  }
+  fs::create_symlink("storage/map.bin", dir + "/map.bin");
+  SequenceDatabase db(small_capacity(), match, kK);
+  {
+    ecu::MapStore store(dir + "/map.bin");
+    REQUIRE(store.load(db, match).outcome == ecu::MapLoadOutcome::kLoaded);
+    SequenceDatabase more(small_capacity(), match, kK);
+    fill(more, 12, 3);
+    REQUIRE_FALSE(store.save(more));
+    CHECK(fs::is_symlink(dir + "/map.bin"));
+    CHECK(fs::exists(dir + "/storage/map.bin.lock"));
+  }
+  SequenceDatabase reloaded(small_capacity(), match, kK);
+  ecu::MapStore again(dir + "/storage/map.bin");
+  CHECK(again.load(reloaded, match).landmarks == 12);
+  // A link to nothing is refused rather than replaced by a file.
+  fs::create_symlink("storage/none.bin", dir + "/dangling.bin");
+  ecu::MapStore dangling(dir + "/dangling.bin");
+  CHECK(dangling.load(db, match).outcome == ecu::MapLoadOutcome::kUnusable);
+  CHECK(fs::is_symlink(dir + "/dangling.bin"));
+}
+
+TEST_CASE("one process per map: a second store on the same map is refused") {
+  const std::string dir = fresh_dir("locked");
+  const MatchConfig match;
+  SequenceDatabase db(small_capacity(), match, kK);
+  ecu::MapStore first(dir + "/map.bin");
+  REQUIRE(first.load(db, match).outcome == ecu::MapLoadOutcome::kMissing);
+  ecu::MapStore second(dir + "/map.bin");
+  const auto result = second.load(db, match);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kUnusable);
+  CHECK_THAT(result.message, ContainsSubstring("in use by another markloop"));
+  // Saves of the holder use temporaries of their own name.
+  fill(db, 6);
+  REQUIRE_FALSE(first.save(db));
+  REQUIRE_FALSE(first.save(db));
+  CHECK(files_named(dir, ".tmp") == 0);
+}
+
+TEST_CASE("damaged maps set aside in the same second never overwrite each other") {
+  const std::string dir = fresh_dir("aside");
+  const MatchConfig match;
+  const std::string path = dir + "/map.bin";
+  for (int i = 0; i < 3; ++i) {
+    std::ofstream(path) << "not a map " << i;
+    SequenceDatabase db(small_capacity(), match, kK);
+    ecu::MapStore store(path);
+    CHECK(store.load(db, match).outcome == ecu::MapLoadOutcome::kRejected);
+  }
+  CHECK(count_set_aside(dir) == 3);
 }
