@@ -194,3 +194,25 @@ TEST_CASE("the reader reports file:line:column on the first bad line and stops")
 
   CHECK(reader.open(path + ".does-not-exist") == std::errc::no_such_file_or_directory);
 }
+
+TEST_CASE("the reader takes a log from a pipe, and a stop request ends a wait for its next line") {
+  int fds[2], stop[2];
+  REQUIRE(::pipe(fds) == 0);
+  REQUIRE(::pipe(stop) == 0);
+  const std::string lines = "(0000000000.020000) vcan0 120#01\n(0000000000.040000) vc";
+  REQUIRE(::write(fds[1], lines.data(), lines.size()) == static_cast<ssize_t>(lines.size()));
+  CandumpLogReader reader;
+  REQUIRE_FALSE(reader.open("/dev/fd/" + std::to_string(fds[0])));
+  reader.set_stop_fd(stop[0]);
+  CandumpRecord rec;
+  REQUIRE(reader.next(rec) == CandumpLogReader::Status::Frame);
+  CHECK(rec.frame.timestamp_ns == 20'000'000);
+  REQUIRE(::write(stop[1], "x", 1) == 1);  // half a line in, the writer stalls
+  CHECK(reader.next(rec) == CandumpLogReader::Status::Stopped);
+  ::close(fds[1]);
+  ::close(stop[0]);
+  ::close(stop[1]);
+  reader.close();
+  ::close(fds[0]);
+  CHECK(reader.open("/tmp").value() == EISDIR);
+}

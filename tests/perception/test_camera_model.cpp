@@ -152,6 +152,52 @@ TEST_CASE("Bad calibration files are refused with the path and the reason") {
   CHECK(error.find("too_large.yaml: larger than 1 MiB") != std::string::npos);
 }
 
+TEST_CASE("Calibrations that would crash the parser or describe no usable camera are refused") {
+  std::string error;
+  const std::string header = "%YAML:1.0\n---\nimage_width: 1280\nimage_height: 512\n";
+  // OpenCV's parsers recurse once per level: 50,000 levels overflow the stack.
+  const auto deep = scratch("deep.yaml");
+  write_file(deep, header + "camera_matrix: " + std::string(50000, '[') + std::string(50000, ']') + "\n");
+  CHECK_FALSE(load_camera_model(deep.string(), error));
+  CHECK(error.find("deep.yaml:5: nested more than 32 levels deep") != std::string::npos);
+  const auto deep_block = scratch("deep_block.yaml");
+  std::string dashes;
+  for (int i = 0; i < 50000; ++i) dashes += "- ";
+  write_file(deep_block, header + "camera_matrix:\n  " + dashes + "1\n");
+  CHECK_FALSE(load_camera_model(deep_block.string(), error));
+  CHECK(error.find("deep_block.yaml:6: nested more than 32 levels deep") != std::string::npos);
+  const auto deep_xml = scratch("deep.xml");
+  std::string elements;
+  for (int i = 0; i < 50000; ++i) elements += "<a>";
+  write_file(deep_xml, "<?xml version=\"1.0\"?>\n<opencv_storage>\n" + elements + "\n");
+  CHECK_FALSE(load_camera_model(deep_xml.string(), error));
+  CHECK(error.find("deep.xml:3: nested more than 32 levels deep") != std::string::npos);
+
+  const std::string pinhole = header +
+      "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+      "  data: [ 900., 0., 639.5, 0., 900., 255.5, 0., 0., 1. ]\n"
+      "mount_height: 1.5\n";
+  const auto nan = scratch("nan_distortion.yaml");
+  write_file(nan, pinhole + "mount_pitch_deg: 12\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n"
+                            "  cols: 5\n  dt: d\n  data: [ .nan, 0., 0., 0., 0. ]\n");
+  CHECK_FALSE(load_camera_model(nan.string(), error));
+  CHECK(error.find("nan_distortion.yaml: distortion_coefficients must be finite") != std::string::npos);
+  const auto inf = scratch("inf_distortion.yaml");
+  write_file(inf, pinhole + "mount_pitch_deg: 12\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n"
+                            "  cols: 4\n  dt: d\n  data: [ 0., -.inf, 0., 0. ]\n");
+  CHECK_FALSE(load_camera_model(inf.string(), error));
+  CHECK(error.find("inf_distortion.yaml: distortion_coefficients must be finite") != std::string::npos);
+
+  // Turned to look sideways: the road ahead is out of the picture.
+  const auto sideways = scratch("sideways.yaml");
+  write_file(sideways, pinhole + "mount_pitch_deg: 12\nmount_yaw_deg: 90\n");
+  CHECK_FALSE(load_camera_model(sideways.string(), error));
+  CHECK(error.find("sideways.yaml: the camera sees no road") != std::string::npos);
+  const auto level = scratch("level.yaml");
+  write_file(level, pinhole + "mount_pitch_deg: 12\n");
+  CHECK(load_camera_model(level.string(), error));
+}
+
 TEST_CASE("The shipped default calibration is the built-in default") {
   std::string error;
   const auto shipped = load_camera_model(MARKLOOP_SOURCE_DIR "/app/cameras/sim.yaml", error);

@@ -1,3 +1,5 @@
+#include <unistd.h>
+
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -108,4 +110,45 @@ TEST_CASE("Y4M: a stream not of the camera's size is refused, with both sizes") 
   CHECK(reader.read_frame(luma) == Y4mRead::kError);  // closed: nothing to read
   CHECK_FALSE(reader.open(scratch("none.y4m"), 6, 4));
   CHECK(reader.error().rfind(scratch("none.y4m") + ": ", 0) == 0);
+}
+
+TEST_CASE("Y4M: 4:2:0 streams are read through a pipe, and a stop request ends a stalled wait") {
+  int fds[2];
+  REQUIRE(::pipe(fds) == 0);
+  const std::string header = "YUV4MPEG2 W4 H2 F10:1 C420jpeg\n";
+  std::string frame = "FRAME\n" + std::string(8, 'Y') + std::string(4, 'c');  // luma, then 2x 2x1 chroma
+  const std::string stream = header + frame + frame;
+  REQUIRE(::write(fds[1], stream.data(), stream.size()) == static_cast<ssize_t>(stream.size()));
+  int stop[2];
+  REQUIRE(::pipe(stop) == 0);
+  Y4mReader reader;
+  REQUIRE(reader.open("/dev/fd/" + std::to_string(fds[0])));
+  reader.set_stop_fd(stop[0]);
+  std::vector<std::uint8_t> luma(8);
+  CHECK(reader.read_frame(luma) == Y4mRead::kFrame);
+  CHECK(reader.read_frame(luma) == Y4mRead::kFrame);
+  CHECK(luma[0] == 'Y');
+  // The writer is still there but sends nothing: only a stop ends the wait.
+  REQUIRE(::write(stop[1], "x", 1) == 1);
+  CHECK(reader.read_frame(luma) == Y4mRead::kStopped);
+  ::close(fds[1]);
+  ::close(stop[0]);
+  ::close(stop[1]);
+  reader.close();
+  ::close(fds[0]);
+}
+
+TEST_CASE("Y4M: absurd frame rates and directories are refused with the reason") {
+  const auto slow = scratch("slow.y4m");
+  std::ofstream(slow) << "YUV4MPEG2 W4 H2 F1:99999999 Cmono\n";
+  Y4mReader reader;
+  CHECK_FALSE(reader.open(slow));
+  CHECK(reader.error() == slow + ": frame rate 1:99999999 (1e-08 frames a second) is outside 0.1 to 1000");
+  const auto fast = scratch("fast.y4m");
+  std::ofstream(fast) << "YUV4MPEG2 W4 H2 F2000:1 Cmono\n";
+  CHECK_FALSE(reader.open(fast));
+  CHECK(reader.error().find("is outside 0.1 to 1000") != std::string::npos);
+  const auto directory = std::filesystem::temp_directory_path().string();
+  CHECK_FALSE(reader.open(directory));
+  CHECK(reader.error() == directory + ": is a directory, not a YUV4MPEG2 stream");
 }
