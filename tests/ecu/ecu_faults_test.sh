@@ -22,8 +22,8 @@ make_log() {  # make_log FILE LINES: one foreign frame every 50 ms
   local i
   for ((i = 0; i < $2; i++)); do printf '(%010d.%06d) vcan0 7FF#00\n' $((i / 20)) $((i % 20 * 50000)); done >"$1"
 }
-make_video frames.y4m 20
-make_log can.log 40
+make_video frames.y4m 6
+make_log can.log 11  # 0 to 0.5 s, as the frames
 run=("${ecu[@]}" --camera-file frames.y4m --can-in can.log --quiet)
 sha() { sha256sum "$1" | cut -d' ' -f1; }
 
@@ -44,7 +44,7 @@ check "database beyond memory" 2 "database.landmark_capacity = 1073741824 .* mor
 make_video slow.y4m 1 "YUV4MPEG2 W1280 H512 F1:99999999 Ip A1:1 Cmono"
 check "absurd frame rate" 2 "^markloop: slow.y4m: frame rate 1:99999999 .* is outside 0.1 to 1000" -- \
   "${ecu[@]}" --camera-file slow.y4m --can-in can.log --can-out out.log
-check "first frame beyond the end" 2 "frames.y4m: --first-frame \(file.first_frame\) is 50, but the file ends after 20 frames" -- \
+check "first frame beyond the end" 2 "frames.y4m: --first-frame \(file.first_frame\) is 50, but the file ends after 6 frames" -- \
   "${run[@]}" --first-frame 50
 sed 's/^(0000000000/(1700000000/' can.log >epoch.log
 check "epoch-stamped log" 2 "^markloop: epoch.log:1: timestamp 1700000000.000000 s is a wall-clock \(epoch\) time" -- \
@@ -92,7 +92,7 @@ else
 fi
 
 # Two ECUs on one map: the second is refused while the first runs.
-make_video long.y4m 30
+make_video long.y4m 3 "YUV4MPEG2 W1280 H512 F1:1 Ip A1:1 Cmono"  # 3 s with --realtime
 "${ecu[@]}" --camera-file long.y4m --can-in can.log --quiet --realtime --map shared.map &
 first=$!
 sleep 1
@@ -102,12 +102,12 @@ kill -TERM "$first"; wait "$first" || { echo "FAIL the first ECU did not stop cl
 # A late input error keeps what was learnt, and still exits 2.
 head -c $(($(stat -c %s frames.y4m) - 1000)) frames.y4m >truncated.y4m
 rm -f late.map
-check "truncated last frame" 2 "^markloop: truncated.y4m: frame 19: truncated \(luma plane incomplete\)" -- \
+check "truncated last frame" 2 "^markloop: truncated.y4m: frame 5: truncated \(luma plane incomplete\)" -- \
   "${ecu[@]}" --camera-file truncated.y4m --can-in can.log --map late.map
 [ -s late.map ] || { echo "FAIL truncated last frame: no map saved"; failures=$((failures + 1)); }
 { cat can.log; echo "garbage"; } >bad.log
 rm -f late.map
-check "malformed last CAN line" 2 "^markloop: bad.log:41:1: expected '\(' starting the timestamp" -- \
+check "malformed last CAN line" 2 "^markloop: bad.log:12:1: expected '\(' starting the timestamp" -- \
   "${ecu[@]}" --camera-file frames.y4m --can-in bad.log --map late.map
 [ -s late.map ] || { echo "FAIL malformed last line: no map saved"; failures=$((failures + 1)); }
 
