@@ -43,12 +43,11 @@ struct RealtimeSettings {
 // Which detections become observations for the engine (all are reported in
 // the detections CSV): markings cut by the image border (near, far) are
 // placed poorly, and low classifier confidence is mostly clutter. The score
-// gate suits the model's calibration: the current one (weight decay 3e-3)
-// gives softer scores; 0.6 keeps every simulated drive free of false loops
-// (0.5 let one through on two-days, when the detector still reported down to
-// 0.5), where 0.9 starved the cross-session confirmation (README, "Measured
-// figures"). The gate may not lie below the detector's own threshold
-// (detector_min_score): nothing under it is detected, and main() refuses it.
+// gate suits the model's calibration: lower lets false loops through on the
+// simulated drives, higher starves the cross-session confirmation
+// (docs/decisions.md). The gate may not lie below the detector's own
+// threshold (detector_min_score): nothing under it is detected, and main()
+// refuses it.
 struct ObservationGate {
   float min_score = 0.6f;
   float min_range_m = 5.5f;   // ahead of the vehicle reference point
@@ -66,7 +65,7 @@ struct ObservationGate {
 //   is not sent: its relative pose would be no better than that.
 // k stays 4: at k = 3 a single session finds more loops, but across sessions
 // (a loaded map, no odometry prior) look-alike city blocks then confirm
-// wrong alignments (README, "Measured figures").
+// wrong alignments (docs/decisions.md).
 inline EngineConfig ecu_engine_defaults() {
   EngineConfig c;
   c.tracker.min_observations = 3;

@@ -57,7 +57,7 @@ int classify(const MlpModel& model, const Features& features,
 // levels and paint of PatchScratch, two channels of kPatchRows x kPatchCols)
 // and its size and shape (the last kShapeFeatures features). It learns its
 // own filters where the MLPs see fixed HOG cells: on a clip held out it finds
-// markings the MLPs miss (app/perception/EXPERIMENTS.md). Layout as PyTorch
+// markings the MLPs miss (docs/decisions.md). Layout as PyTorch
 // stores it: three 3x3 convolutions (padding 1, ReLU; 2x2 max pooling after
 // the first two), flattened channel by row by column, the standardised
 // shape features appended, then a hidden layer (ReLU) and the outputs.
@@ -105,7 +105,7 @@ struct CnnScratch {
 
 // Networks of one layout trained from different random starts: one seed
 // moves a network's recall on a clip held out by about 2 points, and
-// together they are steadier than either (app/perception/EXPERIMENTS.md).
+// together they are steadier than either (docs/decisions.md).
 inline constexpr int kMaxCnnMembers = 2;
 
 struct CnnModel {
@@ -123,7 +123,7 @@ bool cnn_is_usable(const CnnModel& cnn);
 // geometric mean, normalised: mlp^(1 - cnn_share) * (cnn_1 ... cnn_M)^(cnn_share / M)
 // (cnn == nullptr or cnn_share 0: the MLPs alone). A class either model finds
 // unlikely stays unlikely, where an average would keep half of the other's
-// confidence (cross-validation: app/perception/EXPERIMENTS.md). Where the
+// confidence (cross-validation: docs/decisions.md). Where the
 // MLPs call the candidate a reject at `skip_networks_at` or more, their
 // probabilities are returned as they are and the networks do not run: most
 // candidates are such rejects, and against that a marking class would need

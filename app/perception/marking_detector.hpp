@@ -149,8 +149,8 @@ struct DetectorConfig {
   float max_marking_length_m = 9.0f;  // larger groups are not markings (cars, shadows' edges)
   float max_marking_width_m = 9.0f;
   // Below: rejected even if a marking class wins. On the real images'
-  // cross-validation, 0.5 gave 63.8 % recall and 85.5 % precision, 0.6
-  // 62.9 % and 89.0 % (README); 0.6 is also the ECU's observation gate.
+  // cross-validation 0.6 trades a little recall for much precision over
+  // 0.5; it is also the ECU's observation gate.
   float min_score = 0.6f;
   // Markings cut by the edge of the view are classified (for training) but
   // not reported: their class and centre are guesses.

@@ -1,7 +1,7 @@
 # shellcheck shell=sh
 # The classifier's training options and the build that trains, sourced by
 # train-model.sh (the model in the repository) and short-cv.sh (the screen
-# of the experiment log), so that the two train alike.
+# of ideas, docs/decisions.md), so that the two train alike.
 # The build: the preset `train` (x86-64-v3); MARKLOOP_BUILD=build/host for
 # the host preset's.
 # shellcheck disable=SC2034  # used by the scripts that source this file
@@ -19,6 +19,6 @@ BUILD=${MARKLOOP_BUILD:-build/train}
 RECIPE="--reject-weight 2.5 --real-weight 2 --hidden 128 --weight-decay 3e-3 --weight-average 0.9999"
 # The convolutional networks' seeds, one network of the ensemble each: one
 # seed moves the blend's recall on the clips held out by about 2 points, two
-# networks together are steadier (the experiment log).
+# networks together are steadier (docs/decisions.md).
 # shellcheck disable=SC2034  # used by the scripts that source this file
 CNN_SEEDS=1,2

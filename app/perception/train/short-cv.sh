@@ -1,6 +1,6 @@
 #!/bin/sh
-# The short cross-validation that app/perception/EXPERIMENTS.md screens
-# ideas with (about 5 minutes on two cores): markloop-train as
+# The short cross-validation that ideas are screened with (docs/decisions.md;
+# about 5 minutes on two cores): markloop-train as
 # train-model.sh runs it, but one network instead of three and fewer
 # simulator sets (training sets 101..105 and 201..203, the `figure8`
 # drive), judged on the same held-apart sets. It writes no model. Run from

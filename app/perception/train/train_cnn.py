@@ -89,7 +89,7 @@ def jitter(torch, image, generator):
     patches and given noise, then standardised again (zero mean, unit
     spread, as compute_features() gives it), its paint grown or shrunk by a
     pixel in a quarter each, as another camera, exposure, wear or paint
-    threshold would change a marking. Tried and not adopted (EXPERIMENTS.md)."""
+    threshold would change a marking. Tried and not adopted (docs/decisions.md)."""
     n = image.shape[0]
     f = torch.nn.functional
     padded = f.pad(image, (2, 2, 2, 2), mode="replicate")
