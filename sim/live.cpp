@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
+#include <string_view>
 #include <vector>
 
 #include <linux/videodev2.h>
@@ -16,6 +16,7 @@
 #include "drivers/v4l2/v4l2_device.hpp"
 #include "drivers/v4l2/v4l2_output.hpp"
 #include "io/y4m.hpp"
+#include "cli/tool_files.hpp"
 
 namespace markloop::sim {
 
@@ -45,24 +46,21 @@ bool sleep_until(std::int64_t deadline_ns) {
 }
 
 bool load_odometry(const std::string& path, std::vector<can::CanFrame>& frames, std::string& error) {
-  std::ifstream in(path);
-  if (!in) {
-    error = path + ": cannot open";
-    return false;
-  }
-  std::size_t line_number = 0;
-  for (std::string line; std::getline(in, line);) {
-    ++line_number;
+  std::string text;
+  if (!tools::read_input(path, kMaxOdometryBytes, "an odometry log", text, error)) return false;
+  tools::Lines lines(text);
+  std::string_view line;
+  while (lines.next(line)) {
     if (line.empty()) continue;
+    const std::string where = path + ":" + std::to_string(lines.number()) + ":";
     can::CandumpRecord record;
     can::CandumpLineError line_error;
     if (!can::parse_candump_line(line, record, line_error)) {
-      error = path + ":" + std::to_string(line_number) + ":" + std::to_string(line_error.column) +
-              ": " + line_error.what;
+      error = where + std::to_string(line_error.column) + ": " + line_error.what;
       return false;
     }
     if (!frames.empty() && record.frame.timestamp_ns < frames.back().timestamp_ns) {
-      error = path + ":" + std::to_string(line_number) + ": time stamps go backwards";
+      error = where + " time stamps go backwards";
       return false;
     }
     frames.push_back(record.frame);
@@ -106,6 +104,15 @@ bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& e
       !load_odometry((dir / "odometry.log").string(), odometry, error))
     return false;
 
+  // The bus first: its name is checked before the video device is set up.
+  can::SocketCan bus;
+  if (!options.can_interface.empty()) {
+    if (const auto ec = bus.open(options.can_interface, {})) {
+      error = options.can_interface + ": cannot open: " + ec.message();
+      return false;
+    }
+  }
+
   const io::Y4mFormat& format = video.format();
   v4l2::V4l2Output output;
   v4l2::OutputConfig config;
@@ -129,13 +136,6 @@ bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& e
             std::to_string(config.width) + "x" + std::to_string(config.height) +
             " (record it with a --camera of that size, or select another output)";
     return false;
-  }
-  can::SocketCan bus;
-  if (!options.can_interface.empty()) {
-    if (const auto ec = bus.open(options.can_interface, {})) {
-      error = options.can_interface + ": cannot open: " + ec.message();
-      return false;
-    }
   }
 
   struct sigaction action{};

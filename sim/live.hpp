@@ -35,6 +35,10 @@ struct LiveCounters {
   bool interrupted = false;         // SIGINT/SIGTERM
 };
 
+// The odometry log is read whole, up to this limit (checked first): more
+// than a day of driving at the odometry's 50 Hz.
+inline constexpr std::size_t kMaxOdometryBytes = std::size_t{256} << 20;
+
 // Returns false with `error` when the drive cannot be read or a device
 // cannot be opened; send failures during the run are counted, not fatal.
 bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& error);

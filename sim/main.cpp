@@ -3,12 +3,14 @@
 // with the ground truth next to it.
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <string_view>
 
 #include "cli/cli.hpp"
 #include "perception/camera_model.hpp"
+#include "cli/tool_files.hpp"
 #include "sim/live.hpp"
 #include "sim/recorder.hpp"
 #include "sim/route.hpp"
@@ -47,12 +49,15 @@ options:
   --route FILE      drive a pose file instead: one pose per line, KITTI (12
                     numbers, 10 Hz) or TUM (t x y z qx qy qz qw); the world is
                     laid along it, one set of markings per road however often
-                    it is driven
+                    it is driven. A route may be up to 100 km long, its
+                    successive poses up to 1 km apart, each within 100000 km
+                    of the origin, and its file up to 64 MiB
   --out DIR         output folder (created if missing); required
   --seed N          seed of the world, the sensors and the conditions; default 1
-  --speed M/S       driving speed; default 10, or a route's own average speed
-  --fps HZ          camera frame rate; default 10
-  --laps N          drive a built-in scenario's lap N times
+  --speed M/S       driving speed, 0.1..100; default 10, or a route's own
+                    average speed when it lies in 0.5..100
+  --fps HZ          camera frame rate, 1..1000; default 10
+  --laps N          drive a built-in scenario's lap N times (up to 1000)
   --camera FILE     calibration (OpenCV YAML, as the ECU reads); default the
                     built-in 1280x512 camera (app/cameras/sim.yaml)
   --light L         day, dusk, night or wet-glare; default day
@@ -89,6 +94,11 @@ live: play a recorded drive (DIR from "drive": frames.y4m, odometry.log) in
   --can IF          SocketCAN interface for the odometry, e.g. vcan0
   --max-frames N    stop after N frames
   Ends at the end of the drive or on SIGINT/SIGTERM and prints its counters.
+  odometry.log is read whole before the clock starts, up to 256 MiB.
+
+Exit status: 0 on success; 1 when an output cannot be written, or (live) a
+frame or CAN frame could not be sent; 2 on bad options or input, or a device
+that cannot be opened.
 )";
 
 perception::CameraModel camera_from(const std::string& path) {
@@ -97,6 +107,15 @@ perception::CameraModel camera_from(const std::string& path) {
   auto model = perception::load_camera_model(path, error);
   if (!model) fail(error);
   return *model;
+}
+
+// --out names a folder (made when missing); anything else there is a
+// mistake on the command line, refused before the drive.
+void check_out_dir(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (std::filesystem::exists(status) && !std::filesystem::is_directory(status))
+    fail(path + ": not a directory (--out DIR: a folder, made when missing)");
 }
 
 int drive(int argc, char** argv) {
@@ -152,10 +171,11 @@ int drive(int argc, char** argv) {
     }
   }
   if (out_dir.empty()) fail("--out DIR is required (see --help)");
+  check_out_dir(out_dir);
   if (!scenario_name.empty() && !route_file.empty()) fail("give --scenario or --route, not both");
-  if (speed && *speed <= 0) fail("--speed must be positive");
-  if (options.drive.fps <= 0 || options.drive.fps > 1000) fail("--fps must be in (0, 1000]");
-  if (laps && *laps == 0) fail("--laps must be at least 1");
+  if (speed && !(*speed >= 0.1 && *speed <= 100)) fail("--speed must be in 0.1..100 m/s");
+  if (!(options.drive.fps >= 1 && options.drive.fps <= 1000)) fail("--fps must be in 1..1000");
+  if (laps && (*laps == 0 || *laps > 1000)) fail("--laps must be in 1..1000");
   if (options.conditions.paint_wear < 0 || options.conditions.paint_wear > 1) fail("--wear must be in 0..1");
   if (options.conditions.occluder_probability < 0 || options.conditions.occluder_probability > 1)
     fail("--occluders must be in 0..1");
@@ -177,7 +197,7 @@ int drive(int argc, char** argv) {
     auto route = load_route(route_file, error);
     if (!route) fail(error);
     const double route_speed = route->average_speed_mps();
-    if (!speed && route_speed > 0.5) speed = route_speed;
+    if (!speed && route_speed > 0.5 && route_speed <= 100) speed = route_speed;
     scenario = make_route_scenario(route_file, std::move(route->path), options.seed, world);
     if (laps) fail("--laps applies to built-in scenarios only");
   } else {
@@ -193,7 +213,7 @@ int drive(int argc, char** argv) {
 
   RecordSummary summary;
   std::string error;
-  if (!record_drive(*scenario, camera, options, summary, error)) fail(error);
+  if (!record_drive(*scenario, camera, options, summary, error)) tools::fail_run(error);
   std::printf("markloop-sim: %s (%s): %zu frames, %zu markings in the world, %zu detections, "
               "%zu odometry frames",
               scenario->name.c_str(), scenario->description.c_str(), summary.frames,
@@ -221,11 +241,12 @@ int training_set(int argc, char** argv) {
     else if (arg == "--camera") camera_file = value;
   }
   if (options.out_dir.empty()) fail("--out DIR is required (see --help)");
+  check_out_dir(options.out_dir);
   if (options.frames == 0) fail("--frames must be at least 1");
   const perception::CameraModel camera = camera_from(camera_file);
   std::size_t annotations = 0;
   std::string error;
-  if (!record_training_set(camera, options, annotations, error)) fail(error);
+  if (!record_training_set(camera, options, annotations, error)) tools::fail_run(error);
   std::printf("markloop-sim: training set: %zu images, %zu annotated markings -> %s\n",
               options.frames, annotations, options.out_dir.c_str());
   return 0;
@@ -269,10 +290,7 @@ int live(int argc, char** argv) {
   return counters.frame_errors == 0 && counters.can_errors == 0 ? 0 : 1;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  program_name() = "markloop-sim";
+int run(int argc, char** argv) {
   const std::string_view command = argc > 1 ? argv[1] : "";
   if (command == "drive") return drive(argc, argv);
   if (command == "training-set") return training_set(argc, argv);
@@ -288,6 +306,19 @@ int main(int argc, char** argv) {
     std::fputs(kUsage, stdout);
     return 0;
   }
-  std::fputs(kUsage, stderr);
-  return 2;
+  if (command.empty()) {
+    std::fputs(kUsage, stderr);
+    return 2;
+  }
+  fail("unknown command '" + std::string(command) + "' (drive, training-set, live or list; see --help)");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  program_name() = "markloop-sim";
+  const int status = run(argc, argv);
+  std::string error;
+  if (!tools::flush_stdout(error)) tools::fail_run(error);
+  return status;
 }

@@ -15,6 +15,7 @@
 #include "drivers/can/candump_log.hpp"
 #include "io/y4m.hpp"
 #include "markloop/dbc/markloop_messages.hpp"
+#include "cli/tool_files.hpp"
 #include "sim/noise.hpp"
 
 namespace markloop::sim {
@@ -23,31 +24,28 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
-// A checked output file: the first failure is remembered with its path.
+// A checked output file: the first failure is remembered in `error`.
 class OutputFile {
  public:
-  OutputFile(const std::filesystem::path& path, std::string& error) : path_(path.string()), error_(error) {
-    file_ = std::fopen(path_.c_str(), "w");
-    if (file_ == nullptr) error_ = "cannot write " + path_ + ": " + std::strerror(errno);
+  OutputFile(const std::filesystem::path& path, std::string& error) : error_(error) {
+    std::string problem;
+    if (!file_.open(path.string(), problem) && error_.empty()) error_ = problem;
   }
-  ~OutputFile() { (void)close(); }
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
-  bool ok() const { return file_ != nullptr; }
-  std::FILE* get() { return file_; }
+  bool ok() const { return file_.get() != nullptr; }
+  std::FILE* get() { return file_.get(); }
   bool close() {
-    if (file_ == nullptr) return error_.empty();
-    const bool failed = std::ferror(file_) != 0;
-    const bool closed = std::fclose(file_) == 0;
-    file_ = nullptr;
-    if ((failed || !closed) && error_.empty()) error_ = "error writing " + path_;
-    return !failed && closed;
+    if (!ok()) return error_.empty();
+    std::string problem;
+    if (file_.close(problem)) return true;
+    if (error_.empty()) error_ = problem;
+    return false;
   }
 
  private:
-  std::string path_;
+  tools::OutputFile file_;
   std::string& error_;
-  std::FILE* file_ = nullptr;
 };
 
 // CPU time, not wall time: the figure should not depend on what else runs.
@@ -112,12 +110,29 @@ bool write_odometry(const Scenario& scenario, const RecordOptions& options, doub
     frame.timestamp_ns = static_cast<std::int64_t>(j) * static_cast<std::int64_t>(std::llround(config.period_s * 1e9));
     const std::size_t n = can::format_candump_line(frame, "vcan0", line, sizeof line);
     if (n == 0 || std::fwrite(line, 1, n, log.get()) != n) {
-      error = "error writing " + path.string();
+      error = tools::write_error(path.string());
       return false;
     }
   }
   summary.odometry_messages = messages;
   return log.close();
+}
+
+// Encoded in memory, then written as every output is: a failed write says
+// why (a full disk), where imwrite only returns false.
+bool write_png(const std::string& path, const cv::Mat& image, std::string& error) {
+  std::vector<std::uint8_t> png;
+  try {
+    if (!cv::imencode(".png", image, png)) png.clear();
+  } catch (const cv::Exception& e) {
+    error = path + ": cannot encode the PNG: " + e.what();
+    return false;
+  }
+  if (png.empty()) {
+    error = path + ": cannot encode the PNG";
+    return false;
+  }
+  return tools::write_whole_file(path, png.data(), png.size(), error);
 }
 
 }  // namespace
@@ -137,7 +152,7 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) {
-    error = "cannot create " + dir.string() + ": " + ec.message();
+    error = dir.string() + ": cannot create the directory: " + ec.message();
     return false;
   }
   summary = {};
@@ -244,7 +259,7 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
     std::fprintf(markings.get(), "%zu\n", record_count);
     std::FILE* part = std::fopen(records_path.c_str(), "r");
     if (part == nullptr) {
-      error = "cannot read " + records_path.string() + ": " + std::strerror(errno);
+      error = records_path.string() + ": cannot read: " + std::strerror(errno);
       return false;
     }
     char buffer[1 << 16];
@@ -253,7 +268,7 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
     const bool read_ok = std::ferror(part) == 0;
     std::fclose(part);
     if (!read_ok) {
-      error = "error reading " + records_path.string();
+      error = records_path.string() + ": cannot read: " + std::strerror(errno);
       return false;
     }
     if (!markings.close()) return false;
@@ -278,7 +293,7 @@ bool record_training_set(const perception::CameraModel& camera, const TrainingSe
   std::error_code ec;
   std::filesystem::create_directories(dir / "images", ec);
   if (ec) {
-    error = "cannot create " + (dir / "images").string() + ": " + ec.message();
+    error = (dir / "images").string() + ": cannot create the directory: " + ec.message();
     return false;
   }
   const std::uint64_t seed = options.seed + kTrainingSeedOffset;
@@ -334,17 +349,7 @@ bool record_training_set(const perception::CameraModel& camera, const TrainingSe
     }
     renderer.render(pose, speed, c, k, occluders, image);
     const std::filesystem::path png = dir / "images" / (std::to_string(1000000 + k).substr(1) + ".png");
-    bool written = false;
-    try {
-      written = cv::imwrite(png.string(), image);
-    } catch (const cv::Exception& e) {
-      error = png.string() + ": " + e.what();
-      return false;
-    }
-    if (!written) {
-      error = "cannot write " + png.string();
-      return false;
-    }
+    if (!write_png(png.string(), image, error)) return false;
     for (const VisibleMarking& v : seen) write_quad_row(csv.get(), k, v, true);
     annotations += seen.size();
     if (options.progress && options.frames >= 50 && (k + 1) % (options.frames / 10) == 0)

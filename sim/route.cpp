@@ -1,11 +1,13 @@
 #include "sim/route.hpp"
 
-#include <cerrno>
-#include <cmath>
 #include <algorithm>
-#include <cstdlib>
-#include <fstream>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <string_view>
 #include <vector>
+
+#include "cli/tool_files.hpp"
 
 namespace markloop::sim {
 
@@ -13,50 +15,74 @@ namespace {
 
 // Splits on blanks and parses every field as a finite number; on a bad
 // field returns false with `bad` set to it.
-bool parse_numbers(const std::string& line, std::vector<double>& out, std::string& bad) {
+bool parse_numbers(std::string_view line, std::vector<double>& out, std::string& bad) {
   out.clear();
   std::size_t pos = 0;
   while (true) {
     pos = line.find_first_not_of(" \t\r", pos);
-    if (pos == std::string::npos) return true;
-    const std::size_t end = line.find_first_of(" \t\r", pos);
-    const std::string field = line.substr(pos, end == std::string::npos ? std::string::npos : end - pos);
-    char* stop = nullptr;
-    errno = 0;
-    const double v = std::strtod(field.c_str(), &stop);
-    if (*stop != '\0' || errno != 0 || !std::isfinite(v)) {
-      bad = field;
+    if (pos == std::string_view::npos) return true;
+    const std::size_t end = std::min(line.find_first_of(" \t\r", pos), line.size());
+    const std::string_view field = line.substr(pos, end - pos);
+    const char* first = field.data();
+    if (*first == '+') ++first;  // from_chars takes no '+', strtod did
+    double v = 0.0;
+    const auto [stop, ec] = std::from_chars(first, field.data() + field.size(), v);
+    if (ec != std::errc() || stop != field.data() + field.size() || !std::isfinite(v)) {
+      bad = std::string(field);
       return false;
     }
     out.push_back(v);
-    if (end == std::string::npos) return true;
     pos = end;
   }
+}
+
+// "850 m" or "12 km" (adding 0.0 prints -0 as 0).
+std::string distance_text(double metres) {
+  char text[64];
+  if (std::abs(metres) < 10e3) std::snprintf(text, sizeof text, "%.0f m", metres + 0.0);
+  else std::snprintf(text, sizeof text, "%.0f km", metres / 1000.0 + 0.0);
+  return text;
+}
+
+// What is absurd about the pose `point` after `previous` (the route so far
+// `length` long), or nothing: the limits keep the world laid along a route
+// to what a real drive needs.
+std::string absurd_pose(const std::array<double, 2>& point, const std::array<double, 2>* previous,
+                        double& length) {
+  if (std::abs(point[0]) > kMaxRouteCoordinate_m || std::abs(point[1]) > kMaxRouteCoordinate_m)
+    return "position (" + distance_text(point[0]) + ", " + distance_text(point[1]) + ") lies beyond " +
+           distance_text(kMaxRouteCoordinate_m) + " of the origin";
+  if (previous == nullptr) return {};
+  const double step = std::hypot(point[0] - (*previous)[0], point[1] - (*previous)[1]);
+  if (step > kMaxRouteStep_m)
+    return distance_text(step) + " from the pose before: more than the " + distance_text(kMaxRouteStep_m) +
+           " a route may step";
+  length += step;
+  if (length > kMaxRouteLength_m)
+    return "the route grows longer than " + distance_text(kMaxRouteLength_m) + " here";
+  return {};
 }
 
 }  // namespace
 
 std::optional<Route> load_route(const std::string& path, std::string& error) {
-  std::ifstream in(path);
-  if (!in) {
-    error = path + ": cannot open the route file";
-    return std::nullopt;
-  }
+  std::string text;
+  if (!tools::read_input(path, kMaxRouteBytes, "a route file", text, error)) return std::nullopt;
   Route route;
   std::size_t expected = 0;
   std::vector<double> numbers;
   std::vector<std::array<double, 2>> points;
-  double first_t = 0.0, last_t = 0.0;
-  std::string line, bad;
-  std::size_t line_number = 0;
+  double first_t = 0.0, last_t = 0.0, length = 0.0;
+  std::string bad;
+  tools::Lines lines(text);
+  std::string_view line;
   const auto fail = [&](const std::string& what) {
-    error = path + ":" + std::to_string(line_number) + ": " + what;
+    error = path + ":" + std::to_string(lines.number()) + ": " + what;
     return std::nullopt;
   };
-  while (std::getline(in, line)) {
-    ++line_number;
+  while (lines.next(line)) {
     const std::size_t first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#') continue;
+    if (first == std::string_view::npos || line[first] == '#') continue;
     if (!parse_numbers(line, numbers, bad)) return fail("'" + bad + "' is not a number");
     if (expected == 0) {
       if (numbers.size() != 12 && numbers.size() != 8)
@@ -68,21 +94,28 @@ std::optional<Route> load_route(const std::string& path, std::string& error) {
       return fail(std::string("expected ") + std::to_string(expected) + " numbers like the first pose (" +
                   (expected == 12 ? "KITTI" : "TUM") + "), found " + std::to_string(numbers.size()));
     }
+    std::array<double, 2> point{};
     if (route.format == RouteFormat::kKitti) {
-      points.push_back({numbers[11], -numbers[3]});
+      point = {numbers[11], -numbers[3]};
     } else {
       const double t = numbers[0];
       if (route.poses > 0 && !(t > last_t))
         return fail("timestamp " + std::to_string(t) + " does not increase");
       if (route.poses == 0) first_t = t;
       last_t = t;
-      points.push_back({numbers[1], numbers[2]});
+      // The orientation is not used, but a zero quaternion is no rotation:
+      // the line is not a pose.
+      const double norm_sq = numbers[4] * numbers[4] + numbers[5] * numbers[5] + numbers[6] * numbers[6] +
+                             numbers[7] * numbers[7];
+      if (!(norm_sq > 1e-12))
+        return fail("quaternion qx qy qz qw is zero: not a rotation");
+      point = {numbers[1], numbers[2]};
     }
+    if (const std::string absurd = absurd_pose(point, points.empty() ? nullptr : &points.back(), length);
+        !absurd.empty())
+      return fail(absurd);
+    points.push_back(point);
     ++route.poses;
-  }
-  if (in.bad()) {
-    error = path + ": read error";
-    return std::nullopt;
   }
   if (route.poses < 2) {
     error = path + ": a route needs at least 2 poses, found " + std::to_string(route.poses);

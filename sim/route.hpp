@@ -8,8 +8,15 @@
 //    the timestamps give the route's speed.
 // Blank lines and lines starting with '#' are skipped. Every pose line must
 // have the same count of numbers.
+//
+// The world is laid along the whole route, in memory and time that grow
+// with its length (faster than linearly), so a route is refused when it
+// implies no real drive: longer than any drive of the public driving
+// datasets, a jump between successive poses that no recording gap explains,
+// or a position that is no distance in metres.
 #pragma once
 
+#include <cstddef>
 #include <optional>
 #include <string>
 
@@ -26,6 +33,11 @@ struct Route {
   double duration_s = 0.0;  // first to last pose
   double average_speed_mps() const { return duration_s > 0 ? path.length() / duration_s : 0.0; }
 };
+
+inline constexpr std::size_t kMaxRouteBytes = std::size_t{64} << 20;  // read whole
+inline constexpr double kMaxRouteLength_m = 100e3;
+inline constexpr double kMaxRouteStep_m = 1000.0;  // between successive poses
+inline constexpr double kMaxRouteCoordinate_m = 1e8;
 
 // On failure returns nullopt and sets `error` to "FILE:LINE: what is wrong"
 // (or "FILE: ..." for whole-file problems).

@@ -436,8 +436,9 @@ bool parse_class_weights(std::string_view text, std::array<double, kClassCount>&
     const std::string number(item.substr(eq + 1));
     char* end = nullptr;
     const double value = std::strtod(number.c_str(), &end);
-    if (number.empty() || *end != '\0' || !std::isfinite(value) || value < 0) {
-      error = std::string("'").append(item).append("': weight must be a number >= 0");
+    // Relative weights: a million to one is already "never".
+    if (number.empty() || *end != '\0' || !std::isfinite(value) || value < 0 || value > 1e6) {
+      error = std::string("'").append(item).append("': weight must be a number in 0..1e6");
       return false;
     }
     weights[*label] = value;

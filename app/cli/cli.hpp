@@ -1,6 +1,6 @@
 // Small helpers shared by the command-line programs: uniform error messages
-// ("PROGRAM: what is wrong", exit status 2), strict number parsing and
-// checked output files. Not for the real-time loop.
+// ("PROGRAM: what is wrong", exit status 2) and strict number parsing (files:
+// tool_files.hpp). Not for the real-time loop.
 #pragma once
 
 #include <cerrno>
@@ -53,17 +53,6 @@ inline unsigned parse_whole(std::string_view option, const char* text) {
   if (value < 0 || value != std::floor(value) || value > 4e9)
     fail(std::string(option) + ": not a whole number: '" + text + "'");
   return static_cast<unsigned>(value);
-}
-
-inline FILE* open_output(const std::string& path) {
-  FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) fail("cannot write " + path + ": " + std::strerror(errno));
-  return f;
-}
-
-inline void close_output(FILE* f, const std::string& path) {
-  if (std::ferror(f) != 0 || std::fclose(f) != 0)
-    fail("error writing " + path + ": " + std::strerror(errno));
 }
 
 }  // namespace markloop::cli

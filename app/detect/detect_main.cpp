@@ -1,10 +1,13 @@
 // markloop-detect: runs the road-marking detector on still images and prints
 // one JSON object per detection and line. A file that cannot be read, or
 // whose size is not the camera's, is reported on stderr and skipped; the
-// exit status is then 1 (2 for bad usage or a bad calibration).
+// exit status is then 2, as for bad usage or a bad calibration (1: a view or
+// the output could not be written).
+#include <algorithm>
 #include <cmath>
-#include <filesystem>
+#include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <span>
 #include <string>
 #include <system_error>
@@ -19,6 +22,7 @@
 #include "perception/marking_classes.hpp"
 #include "perception/marking_classifier.hpp"
 #include "perception/marking_detector.hpp"
+#include "cli/tool_files.hpp"
 
 namespace {
 
@@ -51,7 +55,12 @@ constexpr const char* kUsage =
     "                  reported (C: cut by the view's edge; or below the score, a\n"
     "                  piece of a larger marking, beyond the region), grey rejected;\n"
     "                  J: a word split by its I (a letter taken for a line),\n"
-    "                  its candidates reported together\n";
+    "                  its candidates reported together\n"
+    "\n"
+    "Images are read whole, up to 256 MiB each.\n"
+    "Exit status: 0 on success; 1 when a view or the output cannot be written;\n"
+    "2 on bad options, a bad calibration or an image that cannot be used (the\n"
+    "other images are still run).\n";
 
 // JSON string escaping for file names.
 std::string json_string(const std::string& s) {
@@ -75,7 +84,8 @@ std::string json_string(const std::string& s) {
 // The view a user checks a miss against: which paint the threshold found,
 // how it was grouped, and what each group was called.
 bool write_view(const markloop::perception::MarkingDetector& detector,
-                std::span<const markloop::perception::Detection> reported, const std::string& path) {
+                std::span<const markloop::perception::Detection> reported, const std::string& path,
+                std::string& error) {
   using namespace markloop::perception;
   constexpr int kScale = 2;
   cv::Mat view;
@@ -114,20 +124,48 @@ bool write_view(const markloop::perception::MarkingDetector& detector,
                   static_cast<double>(c.score), c.clipped ? " C" : "", joined ? " J" : "");
     cv::putText(view, text, top_left + cv::Point(0, -3), cv::FONT_HERSHEY_PLAIN, 0.8, colour, 1);
   }
+  // Encoded in memory, then written as every output is: a failed write says
+  // why (a full disk), where imwrite only returns false.
+  std::vector<std::uint8_t> png;
   try {
-    return cv::imwrite(path, view);
-  } catch (const std::exception&) {
+    if (!cv::imencode(".png", view, png)) png.clear();
+  } catch (const cv::Exception& e) {
+    error = path + ": cannot encode the PNG: " + e.what();
     return false;
   }
+  if (png.empty()) {
+    error = path + ": cannot encode the PNG";
+    return false;
+  }
+  return markloop::tools::write_whole_file(path, png.data(), png.size(), error);
 }
 
-// Why a path named as an image is not a regular file to read.
+// Why a path named as an image cannot be read as one, or nothing (a file, a
+// pipe: read_grey_still reads either, up to its limit).
 std::string not_a_file_reason(const std::filesystem::file_status& status,
                               const std::error_code& error) {
-  if (std::filesystem::is_directory(status)) return "a directory, not an image";
-  if (std::filesystem::exists(status)) return "not a regular file";
+  if (std::filesystem::is_directory(status)) return "is a directory, not an image";
+  if (std::filesystem::exists(status)) return {};
   if (error && error != std::errc::no_such_file_or_directory) return error.message();  // no access
   return "no such file";
+}
+
+// The view of `image` under `view_dir`.
+std::string view_path(const std::string& view_dir, const std::string& image) {
+  return (std::filesystem::path(view_dir) / std::filesystem::path(image).stem()).string() + ".png";
+}
+
+// A view that would overwrite one of the images: refused before any is read.
+void check_views(const std::string& view_dir, const std::vector<std::string>& images) {
+  std::vector<markloop::tools::FileId> inputs;
+  for (const std::string& image : images)
+    if (const auto id = markloop::tools::regular_file_id(image)) inputs.push_back(*id);
+  for (const std::string& image : images) {
+    const std::string view = view_path(view_dir, image);
+    const auto id = markloop::tools::regular_file_id(view);
+    if (id && std::find(inputs.begin(), inputs.end(), *id) != inputs.end())
+      markloop::cli::fail(view + ": the view of " + image + " would overwrite an input image");
+  }
 }
 
 }  // namespace
@@ -166,12 +204,18 @@ int main(int argc, char** argv) {
     images.push_back(arg);
   }
   if (camera_path.empty()) markloop::cli::fail("--camera FILE is required (see --help)");
-  if (images.empty()) markloop::cli::fail("no images given (see --help)");
+  if (images.empty()) markloop::cli::fail("no image given: IMAGE... is required (see --help)");
 
   // Missing files are reported here, plainly, before OpenCV would log them.
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(camera_path, ec))
-    markloop::cli::fail(camera_path + ": no such calibration file");
+  const std::filesystem::file_status camera_status = std::filesystem::status(camera_path, ec);
+  if (std::filesystem::is_directory(camera_status))
+    markloop::cli::fail(camera_path + ": is a directory, not a calibration file");
+  if (!std::filesystem::exists(camera_status)) markloop::cli::fail(camera_path + ": no such calibration file");
+  // The calibration is opened twice (camera, then detector keys): a pipe
+  // would be empty the second time.
+  if (!std::filesystem::is_regular_file(camera_status))
+    markloop::cli::fail(camera_path + ": not a regular file, which a calibration must be");
   std::string error;
   const auto camera = load_camera_model(camera_path, error);
   if (!camera) markloop::cli::fail(error);
@@ -184,24 +228,26 @@ int main(int argc, char** argv) {
     std::error_code made;
     std::filesystem::create_directories(view_dir, made);
     if (!std::filesystem::is_directory(view_dir, ec))
-      markloop::cli::fail("--view " + view_dir + ": cannot create the directory" +
-                          (made ? " (" + made.message() + ")" : std::string()));
+      markloop::tools::fail_run("--view " + view_dir + ": cannot create the directory" +
+                                (made ? " (" + made.message() + ")" : std::string()));
+    check_views(view_dir, images);
   }
 
-  int failures = 0;
+  int bad_images = 0, unwritten_views = 0;
   for (const std::string& path : images) {
     const std::filesystem::file_status status = std::filesystem::status(path, ec);
-    if (!std::filesystem::is_regular_file(status)) {
-      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(),
-                   not_a_file_reason(status, ec).c_str());
-      ++failures;
+    if (const std::string reason = not_a_file_reason(status, ec); !reason.empty()) {
+      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), reason.c_str());
+      ++bad_images;
       continue;
     }
     const cv::Mat grey =
         markloop::io::read_grey_still(path, {camera->width(), camera->height()}, error);
     if (grey.empty()) {
+      // A size that is not the camera's may be the calibration's fault: name it.
+      if (error.starts_with("image is ")) error += " (" + camera_path + ")";
       std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), error.c_str());
-      ++failures;
+      ++bad_images;
       continue;
     }
     const std::string name = json_string(std::filesystem::path(path).filename().string());
@@ -209,11 +255,9 @@ int main(int argc, char** argv) {
     // calibration asks for it, detector_horizon_from_lanes).
     const std::span<const Detection> detections = detector.detect_still(grey);
     if (!view_dir.empty()) {
-      const std::string view_path =
-          (std::filesystem::path(view_dir) / std::filesystem::path(path).stem()).string() + ".png";
-      if (!write_view(detector, detections, view_path)) {
-        std::fprintf(stderr, "markloop-detect: %s: cannot write the view\n", view_path.c_str());
-        ++failures;
+      if (!write_view(detector, detections, view_path(view_dir, path), error)) {
+        std::fprintf(stderr, "markloop-detect: %s\n", error.c_str());
+        ++unwritten_views;
       }
     }
     for (const Detection& d : detections) {
@@ -226,6 +270,6 @@ int main(int argc, char** argv) {
                   static_cast<double>(d.ground_y), d.partial ? ", \"partial\": true" : "");
     }
   }
-  if (std::fflush(stdout) != 0) markloop::cli::fail("error writing the output");
-  return failures > 0 ? 1 : 0;
+  if (!markloop::tools::flush_stdout(error)) markloop::tools::fail_run(error);
+  return bad_images > 0 ? 2 : unwritten_views > 0 ? 1 : 0;
 }

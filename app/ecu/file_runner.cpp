@@ -261,32 +261,33 @@ int FileRun::run(DetectionsCsv& detections_csv) {
   return failed_ ? 2 : 0;
 }
 
-// Opens the inputs and outputs; false (reported) when one cannot be used.
-bool open_files(const RunOptions& options, io::Y4mReader& frames, can::CandumpLogReader& can_in,
-                can::CandumpLogWriter& can_out, DetectionsCsv& detections_csv) {
+// Opens the inputs and outputs; the exit status when one cannot be used (2
+// an input, 1 an output, as every tool), reported; 0 when all are open.
+int open_files(const RunOptions& options, io::Y4mReader& frames, can::CandumpLogReader& can_in,
+               can::CandumpLogWriter& can_out, DetectionsCsv& detections_csv) {
   const EcuConfig& config = options.config;
   if (!frames.open(config.camera.file, options.camera.width(), options.camera.height())) {
     std::fprintf(stderr, "markloop: %s\n", frames.error().c_str());
-    return false;
+    return 2;
   }
   if (auto ec = can_in.open(config.can.in_log)) {
     std::fprintf(stderr, "markloop: %s\n",
                  platform::describe_read_error(config.can.in_log, ec, 0, "a candump log").c_str());
-    return false;
+    return 2;
   }
   if (!config.can.out_log.empty()) {
     if (auto ec = can_out.open(config.can.out_log.c_str(), "vcan0")) {
       std::fprintf(stderr, "markloop: %s: cannot write: %s\n", config.can.out_log.c_str(),
                    ec.message().c_str());
-      return false;
+      return 1;
     }
   }
   if (!config.detections_out.empty() && !detections_csv.open(config.detections_out)) {
     std::fprintf(stderr, "markloop: %s: cannot write: %s\n", config.detections_out.c_str(),
                  std::strerror(errno));
-    return false;
+    return 1;
   }
-  return true;
+  return 0;
 }
 
 // Closes the outputs; false (reported) when one of them failed.
@@ -316,7 +317,8 @@ int run_file_mode(const RunOptions& options) {
   can::CandumpLogReader can_in;
   can::CandumpLogWriter can_out;
   DetectionsCsv detections_csv;
-  if (!open_files(options, frames, can_in, can_out, detections_csv)) return 2;
+  if (const int status = open_files(options, frames, can_in, can_out, detections_csv); status != 0)
+    return status;
   const io::Y4mFormat format = frames.format();
   config.camera.fps = static_cast<unsigned>(
       std::max(1L, std::lround(double(format.fps_numerator) / format.fps_denominator)));

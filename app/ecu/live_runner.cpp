@@ -83,7 +83,7 @@ int run_live_mode(const RunOptions& options) {
     if (auto ec = can_log.open(config.can.out_log.c_str(), config.can.interface)) {
       std::fprintf(stderr, "markloop: %s: cannot write: %s\n", config.can.out_log.c_str(),
                    ec.message().c_str());
-      return 2;
+      return 1;
     }
   }
 

@@ -52,9 +52,9 @@ Options (each overrides the same setting of the configuration file):
 Signals: SIGTERM and SIGINT save the map and stop cleanly (exit status 0),
 also while waiting for a pipe's data.
 Exit status: 0 clean end; 1 a failure while running (the map, the summary or
-an output could not be written); 2 bad configuration or input (also an input
-that turns out damaged during the run: the map is then saved as it stood
-after the last whole frame). See docs/inputs-and-faults.md.
+an output could not be opened or written); 2 bad configuration or input (also
+an input that turns out damaged during the run: the map is then saved as it
+stood after the last whole frame). See docs/inputs-and-faults.md.
 )";
 
 }  // namespace

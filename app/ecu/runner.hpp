@@ -23,8 +23,9 @@ struct RunOptions {
   bool quiet = false;        // no summary on stderr
 };
 
-// Exit status: 0 after a clean end (end of files, SIGTERM, SIGINT), 1 when an
-// input failed while running, 2 for a bad start (files, configuration).
+// Exit status: 0 after a clean end (end of files, SIGTERM, SIGINT); 1 when an
+// output, the map or the summary could not be written; 2 for bad input or
+// configuration (also an input found damaged during the run).
 int run_file_mode(const RunOptions& options);
 int run_live_mode(const RunOptions& options);
 

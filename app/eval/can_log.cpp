@@ -1,10 +1,11 @@
 #include "eval/can_log.hpp"
 
-#include <cstring>
+#include <string_view>
 
 #include "drivers/can/candump_log.hpp"
 #include "eval/inputs.hpp"
 #include "markloop/dbc/loop_detection_assembler.hpp"
+#include "cli/tool_files.hpp"
 
 namespace markloop::eval {
 
@@ -19,14 +20,34 @@ void RejectCounts::count(dbc::DecodeError error) {
   }
 }
 
+namespace {
+
+// Longer lines are no candump line; the message quotes no more of them.
+constexpr std::size_t kMaxLine = 256;
+
+// One line as a frame; false with "FILE:LINE:COLUMN: what in 'line'".
+bool parse_line(const std::string& path, std::size_t number, std::string_view line,
+                can::CandumpRecord& record, std::string& error) {
+  can::CandumpLineError problem;
+  if (line.size() > kMaxLine) {
+    problem = {kMaxLine + 1, "line too long"};
+    line = line.substr(0, kMaxLine);
+  } else if (can::parse_candump_line(line, record, problem)) {
+    return true;
+  }
+  error = path + ":" + std::to_string(number) + ":" + std::to_string(problem.column) + ": " + problem.what +
+          " in '" + std::string(line) + "'";
+  return false;
+}
+
+}  // namespace
+
 bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& error) {
   out = EcuCanLog{};
-  can::CandumpLogReader reader;
-  if (const std::error_code ec = reader.open(path)) {
-    error = path + ": cannot open file: " + ec.message();
-    return false;
-  }
-  Progress progress(path, count_lines(path));
+  std::string text;
+  if (!tools::read_input(path, kMaxInputBytes, "a CAN log", text, error)) return false;
+  Progress progress(path, count_lines(text));
+  tools::Lines lines(text);
   // The log is the ECU's own output in send order, so the alive counters
   // must advance by exactly one per frame of an id.
   dbc::E2eReceiverState loop_e2e, status_e2e;
@@ -34,15 +55,11 @@ bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& erro
   dbc::LoopDetection page{};
   dbc::Status status_page{};
   can::CandumpRecord record;
-  for (;;) {
-    const auto result = reader.next(record);
-    if (result == can::CandumpLogReader::Status::End) break;
-    if (result == can::CandumpLogReader::Status::Error) {
-      error = reader.error();
-      return false;
-    }
+  std::string_view line;
+  while (lines.next(line)) {
+    if (!parse_line(path, lines.number(), line, record, error)) return false;
     ++out.frames;
-    if ((out.frames & 0xFFF) == 0) progress.update(reader.line_number());
+    if ((out.frames & 0xFFF) == 0) progress.update(lines.number());
     const can::CanFrame& frame = record.frame;
     if (frame.extended || (frame.id != dbc::LoopDetection::kId && frame.id != dbc::Status::kId)) {
       ++out.other_frames;
@@ -57,7 +74,7 @@ bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& erro
       }
       if (page.loop_page == dbc::LoopDetection::kPages[0]) ++out.detections_started;
       if (assembler.add(page))
-        out.loops.push_back({assembler.detection(), frame.timestamp_ns, reader.line_number()});
+        out.loops.push_back({assembler.detection(), frame.timestamp_ns, lines.number()});
       continue;
     }
     const dbc::DecodeError result_code = dbc::decode(frame.payload(), status_e2e, status_page);

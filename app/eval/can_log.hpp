@@ -53,8 +53,9 @@ struct EcuCanLog {
   StatusSummary status;
 };
 
-// Reads the whole log. Returns false with "FILE:LINE:COLUMN: what (line)" on
-// a line that is not a candump -l frame, or "FILE: cannot open ...". Frames
+// Reads the whole log (up to kMaxInputBytes). Returns false with
+// "FILE:LINE:COLUMN: what in 'line'" on a line that is not a candump -l
+// frame, or "FILE: what" when the file cannot be read. Frames
 // that parse but fail the E2E checks are not errors: they are counted.
 bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& error);
 

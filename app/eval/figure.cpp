@@ -2,16 +2,17 @@
 
 #include <algorithm>
 #include <array>
-#include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
-#include <cstring>
 #include <limits>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "perception/marking_classes.hpp"
+#include "cli/tool_files.hpp"
 
 namespace markloop::eval {
 
@@ -125,11 +126,9 @@ cv::Scalar bgr(Rgb c) { return {double(c.b), double(c.g), double(c.r)}; }
 
 bool write_svg(const std::string& path, const FigureContent& c, std::string& error) {
   const Layout layout(c);
-  std::FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) {
-    error = path + ": cannot write: " + std::strerror(errno);
-    return false;
-  }
+  tools::OutputFile file;
+  if (!file.open(path, error)) return false;
+  std::FILE* f = file.get();
   std::fprintf(f,
                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
                "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%d\" height=\"%d\" "
@@ -206,11 +205,7 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
     y += 17;
   }
   std::fprintf(f, "</svg>\n");
-  if (std::ferror(f) != 0 || std::fclose(f) != 0) {
-    error = path + ": error writing: " + std::strerror(errno);
-    return false;
-  }
-  return true;
+  return file.close(error);
 }
 
 bool write_png(const std::string& path, const FigureContent& c, std::string& error) {
@@ -271,18 +266,21 @@ bool write_png(const std::string& path, const FigureContent& c, std::string& err
     y += 17;
   }
 
-  bool written = false;
-  try {  // imwrite reports some failures by exception, others by its result
-    written = cv::imwrite(path, image);
+  // Encoded in memory, then written as every output is: a failed write says
+  // why (a full disk), where imwrite only returns false.
+  std::vector<std::uint8_t> png;
+  bool encoded = false;
+  try {
+    encoded = cv::imencode(".png", image, png);
   } catch (const cv::Exception& e) {
-    error = path + ": cannot write PNG: " + e.what();
+    error = path + ": cannot encode the PNG: " + e.what();
     return false;
   }
-  if (!written) {
-    error = path + ": cannot write PNG (check the directory and the .png extension)";
+  if (!encoded) {
+    error = path + ": cannot encode the PNG";
     return false;
   }
-  return true;
+  return tools::write_whole_file(path, png.data(), png.size(), error);
 }
 
 }  // namespace markloop::eval

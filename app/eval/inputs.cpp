@@ -5,11 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <optional>
 #include <string_view>
 
 #include "perception/marking_classes.hpp"
+#include "replay/paper_format.hpp"
+#include "cli/tool_files.hpp"
 
 namespace markloop::eval {
 
@@ -44,30 +45,26 @@ std::optional<double> to_number(std::string_view text) {
   return value;
 }
 
-// Reads a CSV with a fixed header line, calling `row(fields, where)` for each
+// Reads a CSV with a fixed header line, calling `row(fields)` for each
 // non-empty data line; `row` returns an error text or an empty string.
 class CsvFile {
  public:
   template <typename Row>
   static bool read(const std::string& path, std::string_view header, Row&& row, std::string& error) {
-    std::ifstream in(path);
-    if (!in) {
-      error = path + ": cannot open file";
-      return false;
-    }
-    Progress progress(path, count_lines(path));
     std::string text;
-    if (!std::getline(in, text) || trim(text) != header) {
+    if (!tools::read_input(path, kMaxInputBytes, "a CSV file", text, error)) return false;
+    Progress progress(path, count_lines(text));
+    tools::Lines lines(text);
+    std::string_view line;
+    if (!lines.next(line) || trim(line) != header) {
       error = path + ":1: expected the header '" + std::string(header) + "'";
       return false;
     }
     const std::size_t columns = split_fields(header).size();
-    std::size_t line = 1;
-    while (std::getline(in, text)) {
-      ++line;
-      if ((line & 0xFFF) == 0) progress.update(line);
-      if (trim(text).empty()) continue;
-      const auto fields = split_fields(trim(text));
+    while (lines.next(line)) {
+      if ((lines.number() & 0xFFF) == 0) progress.update(lines.number());
+      if (trim(line).empty()) continue;
+      const auto fields = split_fields(trim(line));
       std::string problem;
       if (fields.size() != columns)
         problem = "expected " + std::to_string(columns) + " comma-separated fields (" +
@@ -75,7 +72,7 @@ class CsvFile {
       else
         problem = row(fields);
       if (!problem.empty()) {
-        error = path + ":" + std::to_string(line) + ": " + problem;
+        error = path + ":" + std::to_string(lines.number()) + ": " + problem;
         return false;
       }
     }
@@ -84,11 +81,28 @@ class CsvFile {
   }
 };
 
+// The largest magnitude a number field may have: positions in metres as
+// for poses, angles unwrapped but not without end, image corners far off
+// the image but not at infinity.
+double field_limit(std::string_view name) {
+  constexpr double kMaxPixel = 1e6;
+  if (name == "heading" || name == "car_yaw") return replay::kMaxYaw_rad;
+  if (name.size() == 2 && (name[0] == 'x' || name[0] == 'y') && name[1] >= '1' && name[1] <= '4') return kMaxPixel;
+  return replay::kMaxPoseCoordinate_m;
+}
+
 // Field parsers: on failure they return false and describe the problem.
 bool number_field(std::string_view name, std::string_view text, double& out, std::string& problem) {
   const auto value = to_number(text);
   if (!value) {
     problem = std::string(name) + " is not a finite number: '" + std::string(text) + "'";
+    return false;
+  }
+  if (std::abs(*value) > field_limit(name)) {
+    char limit[32];
+    std::snprintf(limit, sizeof limit, "%g", field_limit(name));
+    problem = std::string(name) + " " + std::string(text) + " is out of range (|" + std::string(name) +
+              "| <= " + limit + ")";
     return false;
   }
   out = *value;
@@ -157,16 +171,8 @@ void Progress::finish() {
   enabled_ = false;
 }
 
-std::size_t count_lines(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (f == nullptr) return 0;
-  std::size_t lines = 0;
-  char buffer[1 << 16];
-  std::size_t n = 0;
-  while ((n = std::fread(buffer, 1, sizeof buffer, f)) > 0)
-    lines += static_cast<std::size_t>(std::count(buffer, buffer + n, '\n'));
-  std::fclose(f);
-  return lines;
+std::size_t count_lines(std::string_view text) {
+  return static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
 }
 
 bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out,

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "engine/types.hpp"
@@ -73,10 +74,15 @@ class Progress {
   std::size_t next_tenth_ = 1;
 };
 
-// Number of lines of a file (0 when it cannot be read); for Progress.
-std::size_t count_lines(const std::string& path);
+// Number of lines of a text; for Progress.
+std::size_t count_lines(std::string_view text);
 
-// Each returns false and sets `error` on a missing file or a bad line. Frames
+// Each of a run's files is read whole, up to this limit (checked first):
+// more than half a day of driving in the largest of them.
+inline constexpr std::size_t kMaxInputBytes = std::size_t{256} << 20;
+
+// Each returns false and sets `error` on a file that cannot be read, is a
+// directory or is over the limit ("FILE: what"), or a bad line. Frames
 // must lie in [0, frame_count) (the truth's frames). Results are sorted by
 // frame (stable).
 bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out,

@@ -15,6 +15,7 @@
 #include "eval/inputs.hpp"
 #include "eval/scoring.hpp"
 #include "replay/paper_format.hpp"
+#include "cli/tool_files.hpp"
 #include "replay/truth_judge.hpp"
 
 namespace {
@@ -46,8 +47,8 @@ options:
                      are skipped with a note; markings driven past also need
                      the detections)
   --tolerance M      a loop detection is correct when the true positions of its
-                     two frames are within M metres; also the radius of a
-                     revisit; default 5
+                     two frames are within M metres (up to 10000); also the
+                     radius of a revisit; default 5
   --svg FILE         picture of the run; default DIR/loops.svg
   --png FILE         the same picture as PNG; default DIR/loops.png
   --json FILE        every figure as JSON, for scripts
@@ -85,7 +86,11 @@ figures:
                      view at the drive's first frame, or passed less than
                      40 m before its end, is not judged
 
-Exit status: 0 on success, 2 on bad input or options (FILE:LINE: what).
+Each input file is read whole and may hold up to 256 MiB; no output may be
+one of them.
+
+Exit status: 0 on success; 1 when an output cannot be written (PATH: why);
+2 on bad input or options (FILE:LINE: what).
 )";
 
 struct Options {
@@ -121,7 +126,7 @@ Options parse(int argc, char** argv) {
     else if (arg == "--json") o.json = v;
   }
   if (o.dir.empty()) fail("DIR is required (see --help)");
-  if (!(o.tolerance > 0)) fail("--tolerance must be positive");
+  if (!(o.tolerance > 0 && o.tolerance <= 10000)) fail("--tolerance must be in (0, 10000] metres");
   const std::filesystem::path dir(o.dir);
   if (o.can.empty()) o.can = dir / "ecu-can.log";
   if (o.detections.empty()) o.detections = dir / "ecu-detections.csv";
@@ -129,6 +134,17 @@ Options parse(int argc, char** argv) {
   if (o.svg.empty()) o.svg = dir / "loops.svg";
   if (o.png.empty()) o.png = dir / "loops.png";
   return o;
+}
+
+// An output that is one of the inputs would destroy it: refused before the run.
+void check_outputs(const Options& o) {
+  const std::filesystem::path dir(o.dir);
+  const std::string inputs[] = {dir / "frames.csv", dir / "markings.csv", dir / "visible.csv",
+                                o.can, o.detections, o.landmarks};
+  for (const std::string* output : {&o.svg, &o.png, &o.json})
+    for (const std::string& input : inputs)
+      if (!output->empty() && tools::overwrites(*output, input))
+        fail(*output + ": is the input " + input + ": an output may not overwrite it");
 }
 
 double percent(std::size_t part, std::size_t whole) {
@@ -267,11 +283,14 @@ void print_passes(const PassScore& p) {
   if (unlisted > 0) std::printf("    ... %zu more (all in --json)\n", unlisted);
 }
 
-void write_json(const std::string& path, const Options& o, std::size_t frames, double length_m,
+// Returns false with `error` when the file cannot be written.
+bool write_json(const std::string& path, const Options& o, std::size_t frames, double length_m,
                 const EcuCanLog& log, const LoopScore& loops, const MarkingScore* markings,
                 const LandmarkScore* landmarks, const std::vector<LandmarkRecord>& landmark_records,
-                const std::vector<WorldMarking>& world, const PassScore* passes) {
-  std::FILE* f = open_output(path);
+                const std::vector<WorldMarking>& world, const PassScore* passes, std::string& error) {
+  tools::OutputFile file;
+  if (!file.open(path, error)) return false;
+  std::FILE* f = file.get();
   const replay::Evaluation& e = loops.evaluation;
   std::fprintf(f, "{\"frames\":%zu,\"route_length_m\":%.1f,\"tolerance_m\":%g,", frames, length_m,
                o.tolerance);
@@ -401,7 +420,7 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
     std::fprintf(f, "]}");
   }
   std::fprintf(f, "}\n");
-  close_output(f, path);
+  return file.close(error);
 }
 
 }  // namespace
@@ -409,24 +428,16 @@ void write_json(const std::string& path, const Options& o, std::size_t frames, d
 int main(int argc, char** argv) {
   program_name() = "markloop-eval";
   const Options o = parse(argc, argv);
+  check_outputs(o);
   const std::filesystem::path dir(o.dir);
   std::string error;
 
-  // Truth: frames.csv must be the simulator's (load_truth would also take
-  // KITTI poses, which have no times).
+  // Truth: frames.csv must be the simulator's, with its header (KITTI poses
+  // carry no times).
   const std::string frames_path = dir / "frames.csv";
   std::vector<Pose2> route;
   std::vector<double> times;
-  {
-    std::FILE* f = std::fopen(frames_path.c_str(), "r");
-    if (f == nullptr) fail(frames_path + ": cannot open file");
-    char header[64] = {};
-    const bool has_header = std::fgets(header, sizeof header, f) != nullptr &&
-                            std::string_view(header).starts_with("frame,t,x,y,yaw");
-    std::fclose(f);
-    if (!has_header) fail(frames_path + ":1: expected the header 'frame,t,x,y,yaw'");
-  }
-  if (!replay::load_truth(frames_path, route, error, &times)) fail(error);
+  if (!replay::load_frames_csv(frames_path, route, times, error)) fail(error);
   if (route.empty()) fail(frames_path + ": no frames");
   for (std::size_t i = 1; i < times.size(); ++i)
     if (!(times[i] > times[i - 1]))
@@ -607,13 +618,16 @@ int main(int argc, char** argv) {
   std::snprintf(text, sizeof text, ", route %.2f km", length_m / 1000.0);
   subtitle += text;
   figure.subtitle = subtitle;
-  if (!write_svg(o.svg, figure, error)) fail(error);
-  if (!write_png(o.png, figure, error)) fail(error);
+  if (!write_svg(o.svg, figure, error)) tools::fail_run(error);
+  if (!write_png(o.png, figure, error)) tools::fail_run(error);
   std::printf("\npicture: %s, %s\n", o.svg.c_str(), o.png.c_str());
   if (!o.json.empty()) {
-    write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr,
-               have_landmarks ? &placed : nullptr, landmarks, world, have_passes ? &passes : nullptr);
+    if (!write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr,
+                    have_landmarks ? &placed : nullptr, landmarks, world, have_passes ? &passes : nullptr,
+                    error))
+      tools::fail_run(error);
     std::printf("figures: %s\n", o.json.c_str());
   }
+  if (!tools::flush_stdout(error)) tools::fail_run(error);
   return 0;
 }

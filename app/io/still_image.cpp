@@ -2,13 +2,14 @@
 
 #include <algorithm>
 #include <array>
-#include <cerrno>
 #include <cstring>
-#include <fstream>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
+
+#include "platform/files.hpp"
 
 namespace markloop::io {
 namespace {
@@ -20,7 +21,7 @@ constexpr std::uint8_t kJpegStartOfScan = 0xda;
 constexpr std::uint8_t kJpegEndOfImage = 0xd9;
 // Larger than any still a camera of this product takes (an 8-bit 4K frame
 // is 8 MB before compression): a bigger file is refused before it is read.
-constexpr std::uintmax_t kMaxStillBytes = 256u << 20;
+constexpr std::size_t kMaxStillBytes = std::size_t{256} << 20;
 
 std::uint32_t big_endian_u32(const std::uint8_t* p) {
   return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
@@ -125,23 +126,14 @@ cv::Size declared_still_size(std::span<const std::uint8_t> bytes) {
 }
 
 cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::string& error) {
-  errno = 0;
-  std::ifstream file(path, std::ios::binary | std::ios::ate);
-  if (!file) {
-    error = errno != 0 ? std::string("cannot open: ") + std::strerror(errno) : "cannot open";
+  std::string file;
+  if (const std::error_code ec = platform::read_file_bounded(path.c_str(), kMaxStillBytes, file)) {
+    if (ec == std::errc::is_a_directory) error = "is a directory, not an image";
+    else if (ec == std::errc::file_too_large) error = "larger than 256 MiB, the limit for an image";
+    else error = "cannot open: " + ec.message();
     return {};
   }
-  const std::streamoff size = file.tellg();
-  if (size < 0 || static_cast<std::uintmax_t>(size) > kMaxStillBytes) {
-    error = size < 0 ? "cannot read its size" : "larger than 256 MB: not a still image";
-    return {};
-  }
-  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
-  file.seekg(0);
-  if (!file.read(reinterpret_cast<char*>(bytes.data()), size)) {
-    error = "read error";
-    return {};
-  }
+  const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(file.data()), file.size());
   switch (check_still(bytes)) {
     case StillCheck::kComplete:
       break;
@@ -169,7 +161,8 @@ cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::stri
   try {
     // The pixels as the camera stored them: an EXIF orientation would turn
     // the image away from the calibration (and from the header's size).
-    grey = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
+    const cv::Mat encoded(1, static_cast<int>(file.size()), CV_8UC1, file.data());
+    grey = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION);
   } catch (const cv::Exception&) {
     grey.release();
   }

@@ -8,15 +8,19 @@
 #include <cstring>
 #include <functional>
 #include <memory>
+#include <new>
 #include <numbers>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "cli/cli.hpp"
+#include "cli/memory_check.hpp"
 #include "replay/compat.hpp"
 #include "replay/paper_format.hpp"
 #include "replay/replay.hpp"
+#include "cli/tool_files.hpp"
 
 namespace {
 
@@ -38,7 +42,7 @@ input:
   --poses FILE           one camera pose per frame (KITTI 3x4 [R|t]); the
                          source of travelled distance. Without it, distance
                          is measured along the markings themselves
-  --fps HZ               frame rate, for time; default 10
+  --fps HZ               frame rate, for time, up to 1000000; default 10
 
 engine:
   --k N                  sequence length; default 4
@@ -65,13 +69,18 @@ output:
                          report correct and wrong matches, revisit recall and
                          relative pose error
   --truth-radius M       a match is correct when the two frames' true
-                         positions are this close; default 10
+                         positions are this close, up to 10000; default 10
   --sweep A..B           run k = A..B and print a table of matches (and, with
                          --truth, the share of correct ones)
   --quiet                print only the summary
   --help                 this text
 
-Exit status: 0 on success, 2 on bad input or options.
+Input files are read whole: --markings, --poses and --truth may hold up to
+256 MiB each. --poses and --truth must hold a pose for every frame the
+markings use. An output may not be one of the input files.
+
+Exit status: 0 on success; 1 when an output cannot be written; 2 on bad
+options or input, or a database larger than the memory available.
 )";
 
 struct Options {
@@ -130,8 +139,8 @@ Options parse(int argc, char** argv) {
     }
   }
   if (o.markings.empty()) fail("--markings FILE is required (see --help)");
-  if (!(o.fps > 0)) fail("--fps must be positive");
-  if (!(o.truth_radius > 0)) fail("--truth-radius must be positive");
+  if (!(o.fps > 0 && o.fps <= 1e6)) fail("--fps must be in (0, 1000000]");
+  if (!(o.truth_radius > 0 && o.truth_radius <= 10000)) fail("--truth-radius must be in (0, 10000] metres");
   if (const char* problem = validate(o.engine)) fail(problem);
   return o;
 }
@@ -216,20 +225,74 @@ std::vector<FramePair> compat_pairs(const std::vector<CompatMatch>& matches) {
   return pairs;
 }
 
-}  // namespace
+// The record that uses the last frame (the first such).
+const MarkingRecord* last_frame_record(const std::vector<MarkingRecord>& records) {
+  const MarkingRecord* last = nullptr;
+  for (const MarkingRecord& r : records)
+    if (last == nullptr || r.frame > last->frame) last = &r;
+  return last;
+}
 
-int main(int argc, char** argv) {
-  program_name() = "markloop-replay";
+// Poses (the odometry) and truth (the judge) are per frame: a file that
+// stops short of the markings' frames would leave frames unseen unnoticed.
+void check_covers(const std::string& path, std::size_t count, const char* what, const Options& o,
+                  const std::vector<MarkingRecord>& records) {
+  const MarkingRecord* last = last_frame_record(records);
+  if (count == 0 && last == nullptr) fail(path + ": has no " + what + "s");
+  if (last == nullptr || count > static_cast<std::size_t>(last->frame)) return;
+  fail(path + ": has " + std::to_string(count) + " " + what + (count == 1 ? "" : "s") +
+       ", the markings reach frame " + std::to_string(last->frame) + " (" + o.markings + ":" +
+       std::to_string(last->line) + "; one " + what + " per frame, line i for frame i)");
+}
+
+// The engine takes the records in frame order: say so when the file's order
+// is another (the paper's files are in frame order).
+void warn_unordered(const std::string& path, const std::vector<MarkingRecord>& records) {
+  for (std::size_t i = 1; i < records.size(); ++i) {
+    if (records[i].frame >= records[i - 1].frame) continue;
+    std::fprintf(stderr, "%s: %s:%d: frame %d after frame %d: the records are taken in frame order\n",
+                 program_name(), path.c_str(), records[i].line, records[i].frame, records[i - 1].frame);
+    return;
+  }
+}
+
+// An output that is one of the inputs would destroy it: refused before the run.
+void check_outputs(const Options& o) {
+  const std::pair<const char*, const std::string*> inputs[] = {
+      {"--markings", &o.markings}, {"--poses", &o.poses}, {"--truth", &o.truth}};
+  for (const std::string* output : {&o.out, &o.jsonl})
+    for (const auto& [option, input] : inputs)
+      if (!output->empty() && !input->empty() && tools::overwrites(*output, *input))
+        fail(*output + ": is the " + option + " input: an output may not overwrite it");
+}
+
+// The database is allocated whole when the engine is built: a size this
+// machine cannot hold is refused here, naming the options.
+void check_database_fits(const Options& o) {
+  const unsigned k = o.sweep_first == 0 ? o.engine.chain.k : o.sweep_last;
+  const std::string problem =
+      database_memory_error(o.engine.database, k, "--landmark-capacity", "--sequence-capacity");
+  if (!problem.empty()) fail(problem);
+}
+
+int replay_main(int argc, char** argv) {
   const Options o = parse(argc, argv);
+  check_outputs(o);
   std::string error;
   std::vector<MarkingRecord> records;
   if (!load_markings(o.markings, records, error)) fail(error);
+  warn_unordered(o.markings, records);
   std::vector<Pose2> poses;
-  if (!o.poses.empty() && !load_kitti_poses(o.poses, poses, error)) fail(error);
+  if (!o.poses.empty()) {
+    if (!load_kitti_poses(o.poses, poses, error)) fail(error);
+    check_covers(o.poses, poses.size(), "pose", o, records);
+  }
+  if (!o.compat) check_database_fits(o);
   std::unique_ptr<TruthJudge> judge;
   if (!o.truth.empty()) {
     std::vector<Pose2> truth;
     if (!load_truth(o.truth, truth, error)) fail(error);
+    check_covers(o.truth, truth.size(), "true pose", o, records);
     judge = std::make_unique<TruthJudge>(std::move(truth), o.truth_radius,
                                          o.engine.match.min_separation_m);
   }
@@ -242,12 +305,13 @@ int main(int argc, char** argv) {
       parameters.k = k;
       const auto matches = run_compat(records, parameters);
       if (write && !o.out.empty()) {
-        FILE* f = open_output(o.out);
+        tools::OutputFile f;
+        if (!f.open(o.out, error)) tools::fail_run(error);
         for (const CompatMatch& m : matches) {
-          write_frames(f, m.earlier);
-          write_frames(f, m.later);
+          write_frames(f.get(), m.earlier);
+          write_frames(f.get(), m.later);
         }
-        close_output(f, o.out);
+        if (!f.close(error)) tools::fail_run(error);
       }
       return compat_pairs(matches);
     }
@@ -256,17 +320,19 @@ int main(int argc, char** argv) {
     const ReplayResult result = run_engine(records, poses, labels, config, o.fps);
     if (write) {
       if (!o.out.empty()) {
-        FILE* f = open_output(o.out);
+        tools::OutputFile f;
+        if (!f.open(o.out, error)) tools::fail_run(error);
         for (const MatchEvent& e : result.matches) {
-          write_frames(f, frames_of(e, false));
-          write_frames(f, frames_of(e, true));
+          write_frames(f.get(), frames_of(e, false));
+          write_frames(f.get(), frames_of(e, true));
         }
-        close_output(f, o.out);
+        if (!f.close(error)) tools::fail_run(error);
       }
       if (!o.jsonl.empty()) {
-        FILE* f = open_output(o.jsonl);
-        for (const MatchEvent& e : result.matches) write_jsonl(f, e, labels, judge.get());
-        close_output(f, o.jsonl);
+        tools::OutputFile f;
+        if (!f.open(o.jsonl, error)) tools::fail_run(error);
+        for (const MatchEvent& e : result.matches) write_jsonl(f.get(), e, labels, judge.get());
+        if (!f.close(error)) tools::fail_run(error);
       }
       const auto& c = result.counters;
       std::printf("markloop-replay: %zu detections in %zu frames -> %llu landmarks, %llu sequences "
@@ -306,6 +372,7 @@ int main(int argc, char** argv) {
                   pairs.size(), o.engine.chain.k);
       if (judge) print_evaluation(judge->evaluate(pairs));
     }
+    if (!tools::flush_stdout(error)) tools::fail_run(error);
     return 0;
   }
 
@@ -332,5 +399,20 @@ int main(int argc, char** argv) {
       judged[i] ? std::printf(" %6.1f", 100.0 * double(judged[i] - correct[i]) / double(judged[i])) : std::printf(" %6s", "-");
   }
   std::printf("\n");
+  if (!tools::flush_stdout(error)) tools::fail_run(error);
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  program_name() = "markloop-replay";
+  try {
+    return replay_main(argc, argv);
+  } catch (const std::bad_alloc&) {
+    // Inputs and the database are checked against their limits first: this
+    // is what no check foresaw (another program took the memory meanwhile).
+    fail("out of memory: the input or the database (--landmark-capacity, --sequence-capacity) is "
+         "too large for the memory available");
+  }
 }

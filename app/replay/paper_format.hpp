@@ -2,6 +2,7 @@
 // simulator's ground truth. Every error names the file and line.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <unordered_map>
@@ -34,7 +35,23 @@ class LabelTable {
   std::unordered_map<std::string, Label> ids_;
 };
 
-// Each loader returns false and sets `error` ("FILE:LINE: what") on bad input.
+// Each file is read whole, so each has a limit, checked before it is read:
+// several times the paper's whole dataset (its 200 drives in one file).
+inline constexpr std::size_t kMaxMarkingsBytes = std::size_t{256} << 20;
+inline constexpr std::size_t kMaxPosesBytes = std::size_t{256} << 20;  // poses and truth
+// A pose coordinate farther from the origin than this (metres) is no pose of
+// a drive (a file in other units, or garbage); refused, so that distances
+// and grid cells computed from poses stay finite.
+inline constexpr double kMaxPoseCoordinate_m = 1e8;
+// frames.csv's yaw may be unwrapped (turns add up), not without end; its
+// time is seconds since the start, within a century of driving.
+inline constexpr double kMaxYaw_rad = 1e6;
+inline constexpr double kMaxTime_s = 3.2e9;
+// Labels are class names: a longer one is no label (a line gone wrong).
+inline constexpr std::size_t kMaxLabelLength = 64;
+
+// Each loader returns false and sets `error` ("FILE:LINE: what") on bad input
+// ("FILE: what" when the file cannot be read, is a directory or is too big).
 bool load_markings(const std::string& path, std::vector<MarkingRecord>& records,
                    std::string& error);
 // One 3x4 row-major [R|t] camera pose per line (KITTI odometry), line i for
@@ -45,6 +62,9 @@ bool load_kitti_poses(const std::string& path, std::vector<Pose2>& poses, std::s
 // (left empty for KITTI poses, which carry no time).
 bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error,
                 std::vector<double>* times = nullptr);
+// The simulator's frames.csv only (its header required): poses and times.
+bool load_frames_csv(const std::string& path, std::vector<Pose2>& poses, std::vector<double>& times,
+                     std::string& error);
 
 // The paper's camera-style axes to the engine's ground frame.
 inline Observation to_ground(const MarkingRecord& r, Label label) {

@@ -3,13 +3,21 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <map>
 #include <numbers>
 #include <unordered_map>
 
 namespace markloop::replay {
 
 namespace {
+
 constexpr double kSegmentLength_m = 100.0;
+
+struct Stretch {
+  MissedStretch missed;  // where it lies, should no correct match fall in it
+  bool detected = false;
+};
+
 }  // namespace
 
 TruthJudge::TruthJudge(std::vector<Pose2> truth, double radius_m, double min_separation_m)
@@ -33,11 +41,16 @@ TruthJudge::TruthJudge(std::vector<Pose2> truth, double radius_m, double min_sep
       for (std::int64_t dy = -1; dy <= 1 && !revisit_[i]; ++dy) {
         const auto it = grid.find(key(cx + dx, cy + dy));
         if (it == grid.end()) continue;
-        for (const std::size_t j : it->second) {
-          if (travelled[i] - travelled[j] >= min_separation_m &&
-              std::hypot(truth_[i].x - truth_[j].x, truth_[i].y - truth_[j].y) <= radius_m_) {
+        // Frames of a cell in drive order, so travelled distance rises
+        // along it: only its first ones lie far enough back.
+        const std::vector<std::size_t>& earlier = it->second;
+        const auto far_back = std::partition_point(earlier.begin(), earlier.end(), [&](std::size_t j) {
+          return travelled[i] - travelled[j] >= min_separation_m;
+        });
+        for (auto j = earlier.begin(); j != far_back; ++j) {
+          if (std::hypot(truth_[i].x - truth_[*j].x, truth_[i].y - truth_[*j].y) <= radius_m_) {
             revisit_[i] = true;
-            revisited_frame_[i] = j;
+            revisited_frame_[i] = *j;
             break;
           }
         }
@@ -66,12 +79,22 @@ PoseError TruthJudge::pose_error(const FramePair& pair, const Pose2& estimate) c
 Evaluation TruthJudge::evaluate(const std::vector<FramePair>& pairs,
                                 std::span<const std::optional<Pose2>> relative_poses) const {
   Evaluation e;
-  std::vector<bool> segment_revisited, segment_detected;
-  const std::size_t segments = segment_.empty() ? 0 : segment_.back() + 1;
-  segment_revisited.assign(segments, false);
-  segment_detected.assign(segments, false);
-  for (std::size_t i = 0; i < truth_.size(); ++i)
-    if (revisit_[i]) segment_revisited[segment_[i]] = true;
+  // The revisited stretches, by index, and their revisiting frames: as many
+  // as there are frames at most, however long the stretches' indices run.
+  std::map<std::size_t, Stretch> revisited;
+  for (std::size_t i = 0; i < truth_.size(); ++i) {
+    if (!revisit_[i]) continue;
+    const auto [it, first] = revisited.try_emplace(segment_[i]);
+    MissedStretch& m = it->second.missed;
+    if (first) {
+      m.index = segment_[i];
+      m.first_frame = i;
+      m.first_visit_from = m.first_visit_to = revisited_frame_[i];
+    }
+    m.last_frame = i;
+    m.first_visit_from = std::min(m.first_visit_from, revisited_frame_[i]);
+    m.first_visit_to = std::max(m.first_visit_to, revisited_frame_[i]);
+  }
 
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     const FramePair& pair = pairs[i];
@@ -84,7 +107,7 @@ Evaluation TruthJudge::evaluate(const std::vector<FramePair>& pairs,
       continue;
     }
     ++e.correct;
-    segment_detected[segment_[pair.query]] = true;
+    if (const auto it = revisited.find(segment_[pair.query]); it != revisited.end()) it->second.detected = true;
     if (i >= relative_poses.size() || !relative_poses[i]) continue;
     const PoseError error = pose_error(pair, *relative_poses[i]);
     ++e.pose_errors;
@@ -97,28 +120,10 @@ Evaluation TruthJudge::evaluate(const std::vector<FramePair>& pairs,
     e.translation_error_mean_m /= static_cast<double>(e.pose_errors);
     e.rotation_error_mean_deg /= static_cast<double>(e.pose_errors);
   }
-  for (std::size_t s = 0; s < segments; ++s) {
-    if (!segment_revisited[s]) continue;
+  for (const auto& [index, stretch] : revisited) {
     ++e.revisit_segments;
-    if (segment_detected[s]) {
-      ++e.revisit_segments_detected;
-      continue;
-    }
-    MissedStretch missed;
-    missed.index = s;
-    bool first = true;
-    for (std::size_t i = 0; i < truth_.size(); ++i) {
-      if (segment_[i] != s || !revisit_[i]) continue;
-      if (first) {
-        missed.first_frame = i;
-        missed.first_visit_from = missed.first_visit_to = revisited_frame_[i];
-        first = false;
-      }
-      missed.last_frame = i;
-      missed.first_visit_from = std::min(missed.first_visit_from, revisited_frame_[i]);
-      missed.first_visit_to = std::max(missed.first_visit_to, revisited_frame_[i]);
-    }
-    e.missed_stretches.push_back(missed);
+    if (stretch.detected) ++e.revisit_segments_detected;
+    else e.missed_stretches.push_back(stretch.missed);
   }
   return e;
 }

@@ -22,6 +22,37 @@ check "short pose line" 2 "poses.txt:2: expected 12 numbers" -- "$replay" --mark
 check "bad k" 2 "k must be between 2 and 10" -- "$replay" --markings "$work/one.txt" --k 11
 check "bad sweep" 2 "--sweep: expected" -- "$replay" --markings "$work/one.txt" --sweep 5
 
+# Inputs: a directory, an endless device and poses that stop short are
+# refused by name; a record at the largest frame takes no longer than others.
+check "directory as markings" 2 "^markloop-replay: $work: is a directory, not a markings file" -- "$replay" --markings "$work"
+check "directory as truth" 2 "$work: is a directory, not a ground truth file" -- "$replay" --markings "$work/one.txt" --truth "$work"
+check "endless markings" 2 "/dev/zero: larger than 256 MiB, the limit for a markings file" -- "$replay" --markings /dev/zero
+printf '2\n0 1 1.5 10 A\n2147483647 1 1.5 10 A\n' >"$work/far.txt"
+check "largest frame number" 0 "2 detections in 2147483648 frames" -- timeout 10 "$replay" --markings "$work/far.txt"
+: >"$work/no-poses.txt"
+check "empty poses" 2 "no-poses.txt: has 0 poses, the markings reach frame 2147483647" -- \
+  "$replay" --markings "$work/far.txt" --poses "$work/no-poses.txt"
+printf '2\n0 1 1.5 10 A\n2 1 1.5 10 A\n' >"$work/three-frames.txt"
+printf '1 0 0 0 0 1 0 0 0 0 1 0\n' >"$work/one-pose.txt"
+check "poses short of the markings" 2 "one-pose.txt: has 1 pose, the markings reach frame 2" -- \
+  "$replay" --markings "$work/three-frames.txt" --poses "$work/one-pose.txt"
+check "database beyond memory" 2 "^markloop-replay: --landmark-capacity = 1073741824 and --sequence-capacity = 1073741824 .* more than .* of memory available" -- \
+  "$replay" --markings "$work/one.txt" --landmark-capacity 1073741824 --sequence-capacity 1073741824
+check "directory as output" 1 "^markloop-replay: $work: cannot write: Is a directory" -- "$replay" --markings "$work/one.txt" --out "$work"
+cp "$work/one.txt" "$work/keep.txt"
+check "output is the markings" 2 "keep.txt: is the --markings input: an output may not overwrite it" -- \
+  "$replay" --markings "$work/keep.txt" --out "$work/keep.txt"
+cmp -s "$work/one.txt" "$work/keep.txt" || { echo "FAIL the markings were overwritten"; failures=$((failures + 1)); }
+printf 'frame,t,x,y,yaw\n0,0,0,0,0\n' >"$work/truth-one.csv"
+check "truth short of the markings" 2 "truth-one.csv: has 1 true pose, the markings reach frame 2 \($work/three-frames.txt:3;" -- \
+  "$replay" --markings "$work/three-frames.txt" --truth "$work/truth-one.csv"
+printf '1\n0 1 1.5 10 %s\n' "$(head -c 100 /dev/zero | tr '\0' a)" >"$work/long-label.txt"
+check "label too long" 2 "long-label.txt:2: record 1: label is longer than 64 characters" -- "$replay" --markings "$work/long-label.txt"
+printf '2\n5 1 1.5 10 A\n1 1 1.5 12 A\n' >"$work/backwards.txt"
+check "frames out of order" 0 "backwards.txt:3: frame 1 after frame 5: the records are taken in frame order" -- \
+  "$replay" --markings "$work/backwards.txt"
+check "frame rate out of range" 2 "--fps must be in \(0, 1000000\]" -- "$replay" --markings "$work/one.txt" --fps 2147483648
+
 printf '0\n' >"$work/empty.txt"
 check "empty input (engine)" 0 "^matches: 0" -- "$replay" --markings "$work/empty.txt"
 check "empty input (compat)" 0 "0 matches" -- "$replay" --markings "$work/empty.txt" --compat --out "$work/empty-matches.txt"
@@ -39,5 +70,12 @@ grep -q '"residual_m"' "$work/matches.jsonl" || { echo "FAIL jsonl lacks residua
 check "sweep" 0 "Correct matches \(%\)" -- "$replay" --markings "$work/drive/markings.txt" \
   --poses "$work/drive/poses.txt" --truth "$work/drive/frames.csv" --sweep 2..6
 check "compat on the drive" 0 "matches \(k=4\)" -- "$replay" --markings "$work/drive/markings.txt" --compat
+# Outputs that cannot be written fail the run (status 1), naming them.
+check "full disk (--out)" 1 "^markloop-replay: /dev/full: cannot write: No space left on device" -- \
+  "$replay" --markings "$work/drive/markings.txt" --poses "$work/drive/poses.txt" --out /dev/full
+check "full disk (--jsonl)" 1 "/dev/full: cannot write: No space left on device" -- \
+  "$replay" --markings "$work/drive/markings.txt" --poses "$work/drive/poses.txt" --jsonl /dev/full
+check "full disk (standard output)" 1 "standard output: cannot write: No space left on device" -- \
+  bash -c '"$1" --markings "$2" >/dev/full' - "$replay" "$work/drive/markings.txt"
 
 finish

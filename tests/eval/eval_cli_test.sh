@@ -11,7 +11,7 @@ check "--help" 0 "usage: markloop-eval DIR" -- "$eval_tool" --help
 check "no DIR" 2 "^markloop-eval: DIR is required" -- "$eval_tool"
 check "unknown option" 2 "unknown option --frobnicate" -- "$eval_tool" "$work" --frobnicate
 check "bad tolerance" 2 "--tolerance: not a number" -- "$eval_tool" "$work" --tolerance five
-check "no frames.csv" 2 "$work/frames.csv: cannot open file" -- "$eval_tool" "$work"
+check "no frames.csv" 2 "$work/frames.csv: cannot open: No such file or directory" -- "$eval_tool" "$work"
 
 run=$(fresh run)
 check "synthetic run" 0 "precision +50.0 %" -- "$eval_tool" "$run" --json "$run/figures.json"
@@ -49,10 +49,10 @@ check "no detections file: note" 0 "ecu-detections.csv not found: marking detect
 grep -qE "on no marking +1" "$work/out" || { echo "FAIL landmarks not judged without the detections"; failures=$((failures + 1)); }
 grep -q "^Markings driven past: need the detections and the landmarks" "$work/out" ||
   { echo "FAIL no note on the markings driven past"; failures=$((failures + 1)); }
-check "--detections missing" 2 "absent.csv: cannot open file" -- "$eval_tool" "$run" --detections "$run/absent.csv"
+check "--detections missing" 2 "absent.csv: cannot open: No such file" -- "$eval_tool" "$run" --detections "$run/absent.csv"
 run=$(fresh nolandmarks) && rm "$run/ecu-landmarks.csv"
 check "no landmarks file: note" 0 "ecu-landmarks.csv not found: landmarks not evaluated" -- "$eval_tool" "$run"
-check "--landmarks missing" 2 "absent.csv: cannot open file" -- "$eval_tool" "$run" --landmarks "$run/absent.csv"
+check "--landmarks missing" 2 "absent.csv: cannot open: No such file" -- "$eval_tool" "$run" --landmarks "$run/absent.csv"
 run=$(fresh badlandmark) && sed -i '3s/,15,19,/,25,19,/' "$run/ecu-landmarks.csv"
 check "landmark frames reversed" 2 "^markloop-eval: $run/ecu-landmarks.csv:3: first_frame 25 is after last_frame 19" -- "$eval_tool" "$run"
 run=$(fresh farlandmark) && sed -i '2s/,30,48,/,30,900,/' "$run/ecu-landmarks.csv"
@@ -67,6 +67,38 @@ check "bad frames.csv" 2 "^markloop-eval: $run/frames.csv:5: expected frame,t,x,
 run=$(fresh baddet) && sed -i '3s/leftturn/left-turn/' "$run/ecu-detections.csv"
 check "unknown label" 2 "^markloop-eval: $run/ecu-detections.csv:3: label 'left-turn' is not a marking class" -- "$eval_tool" "$run"
 run=$(fresh badpng)
-check "unwritable picture" 2 "nowhere/x.png" -- "$eval_tool" "$run" --png "$work/nowhere/x.png"
+check "unwritable picture" 1 "^markloop-eval: $work/nowhere/x.png: cannot write: No such file or directory" -- \
+  "$eval_tool" "$run" --png "$work/nowhere/x.png"
+
+# Inputs that are directories or endless are refused by name (status 2);
+# outputs that cannot be written fail the run (status 1), naming them.
+run=$(fresh limits)
+check "directory as --can" 2 "^markloop-eval: $run: is a directory, not a CAN log" -- "$eval_tool" "$run" --can "$run"
+check "directory as --detections" 2 "^markloop-eval: $run: is a directory, not a CSV file" -- \
+  "$eval_tool" "$run" --detections "$run"
+check "endless --landmarks" 2 "^markloop-eval: /dev/zero: larger than 256 MiB, the limit for a CSV file" -- \
+  "$eval_tool" "$run" --landmarks /dev/zero
+mv "$run/frames.csv" "$run/frames.tmp" && mkdir "$run/frames.csv"
+check "directory as frames.csv" 2 "frames.csv: is a directory, not a frames.csv file" -- "$eval_tool" "$run"
+rmdir "$run/frames.csv" && mv "$run/frames.tmp" "$run/frames.csv"
+check "full disk (--json)" 1 "^markloop-eval: /dev/full: cannot write: No space left on device" -- \
+  "$eval_tool" "$run" --json /dev/full
+check "full disk (--png)" 1 "^markloop-eval: /dev/full: cannot write: No space left on device" -- \
+  "$eval_tool" "$run" --png /dev/full
+check "directory as --svg" 1 "^markloop-eval: $run: cannot write: Is a directory" -- "$eval_tool" "$run" --svg "$run"
+cp "$run/frames.csv" "$work/frames.keep"
+check "output is frames.csv" 2 "^markloop-eval: $run/frames.csv: is the input $run/frames.csv: an output may not overwrite it" -- \
+  "$eval_tool" "$run" --json "$run/frames.csv"
+cmp -s "$run/frames.csv" "$work/frames.keep" || { echo "FAIL frames.csv was overwritten"; failures=$((failures + 1)); }
+check "tolerance out of range" 2 "--tolerance must be in \(0, 10000\] metres" -- "$eval_tool" "$run" --tolerance 1e308
+run=$(fresh hugeyaw) && sed -i '3s/,[^,]*$/,1e308/' "$run/frames.csv"
+check "yaw out of range" 2 "^markloop-eval: $run/frames.csv:3: yaw is out of range" -- "$eval_tool" "$run"
+run=$(fresh hugeheading) && sed -i '3s/,[^,]*$/,1e308/' "$run/markings.csv"
+check "heading out of range" 2 "^markloop-eval: $run/markings.csv:3: heading 1e308 is out of range" -- "$eval_tool" "$run"
+run=$(fresh hugecorner) && sed -i '3s/,[^,]*$/,1e308/' "$run/visible.csv"
+check "corner out of range" 2 "^markloop-eval: $run/visible.csv:3: y4 1e308 is out of range" -- "$eval_tool" "$run"
+run=$(fresh limits2)
+check "full disk (standard output)" 1 "standard output: cannot write: No space left on device" -- \
+  bash -c '"$1" "$2" >/dev/full' - "$eval_tool" "$run"
 
 finish

@@ -420,7 +420,9 @@ TEST_CASE("malformed inputs are reported with file and line") {
   CHECK(error == (dir / "m.csv").string() + ":1: expected the header 'id,class,x,y,heading'");
 
   CHECK_FALSE(load_world_markings(dir / "absent.csv", world, error));
-  CHECK(error == (dir / "absent.csv").string() + ": cannot open file");
+  CHECK(error == (dir / "absent.csv").string() + ": cannot open: No such file or directory");
+  CHECK_FALSE(load_world_markings(dir, world, error));
+  CHECK(error == dir.string() + ": is a directory, not a CSV file");
 
   fixture::write_text(dir / "c.log", "(0000000001.000000) vcan0 2A0#0011223344556677\n"
                                      "(0000000001.000100) vcan0 2A0#00112233445566ZZ\n");

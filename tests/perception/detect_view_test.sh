@@ -29,7 +29,7 @@ done
 # still runs (its view written).
 head -c 3000 "${images[0]}" > "$work/cut.png"
 rm -rf "$work/view"
-check "truncated image refused" 1 "cut.png: truncated PNG" -- \
+check "truncated image refused" 2 "cut.png: truncated PNG" -- \
   "$detect" --camera "$work/set/camera.yaml" --view "$work/view" "$work/cut.png" "${images[1]}"
 if [ -f "$work/view/$(basename "${images[1]}")" ] && [ ! -e "$work/view/cut.png" ]; then
   echo "ok   the image after the truncated one still run"
@@ -41,9 +41,26 @@ fi
 # is refused by its declared size, before anything is decoded.
 cp "${images[0]}" "$work/huge.png"
 printf '\x00\x00\x9c\x40\x00\x00\x9c\x40' | dd of="$work/huge.png" bs=1 seek=16 conv=notrunc status=none
-check "huge declared image refused" 1 "huge.png: image is 40000x40000, the camera's" -- \
+check "huge declared image refused" 2 "huge.png: image is 40000x40000, the camera's" -- \
   "$detect" --camera "$work/set/camera.yaml" "$work/huge.png" "${images[1]}"
 touch "$work/file"
-check "view directory refused" 2 "--view $work/file/views: cannot create the directory" -- \
+check "view directory refused" 1 "--view $work/file/views: cannot create the directory" -- \
   "$detect" --camera "$work/set/camera.yaml" --view "$work/file/views" "${images[0]}"
+# Bad input is status 2, an output not written 1, each named with the reason.
+check "directory as image" 2 "^markloop-detect: $work: is a directory, not an image" -- \
+  "$detect" --camera "$work/set/camera.yaml" "$work" "${images[0]}"
+check "directory as calibration" 2 "^markloop-detect: $work: is a directory, not a calibration file" -- \
+  "$detect" --camera "$work" "${images[0]}"
+mkdir -p "$work/full-view" && ln -sf /dev/full "$work/full-view/$(basename "${images[0]}")"
+check "view on a full disk" 1 "full-view/$(basename "${images[0]}"): cannot write: No space left on device" -- \
+  "$detect" --camera "$work/set/camera.yaml" --view "$work/full-view" "${images[0]}"
+cp "${images[0]}" "$work/input.png" && cp "${images[0]}" "$work/input.keep"
+check "view would overwrite the image" 2 "$work/input.png: the view of $work/input.png would overwrite an input image" -- \
+  "$detect" --camera "$work/set/camera.yaml" --view "$work" "$work/input.png"
+cmp -s "$work/input.png" "$work/input.keep" || { echo "FAIL the input image was overwritten"; failures=$((failures + 1)); }
+mkfifo "$work/fifo.png" && (timeout 20 cat "${images[0]}" >"$work/fifo.png" 2>/dev/null &)
+check "image through a pipe" 0 "\"image\": \"fifo.png\"" -- "$detect" --camera "$work/set/camera.yaml" "$work/fifo.png"
+check "no image" 2 "no image given: IMAGE... is required" -- "$detect" --camera "$work/set/camera.yaml"
+check "full disk (standard output)" 1 "standard output: cannot write: No space left on device" -- \
+  bash -c '"$1" --camera "$2" "$3" >/dev/full' - "$detect" "$work/set/camera.yaml" "${images[0]}"
 finish

@@ -28,4 +28,24 @@ check "evaluate builtin" 0 "Simulator test set $work/set \(never trained on\)" -
 # The table's last row: every class, with recall and precision.
 grep -qE "^all +[0-9]+ +[0-9]+ +[0-9.]+% +[0-9]+ +[0-9]+ +[0-9.]+%" "$work/out" ||
   { echo "FAIL evaluate builtin: no 'all' row"; failures=$((failures + 1)); }
+
+# Inputs read whole are refused by name when they are directories or too
+# big (status 2); outputs that cannot be written fail the run (status 1).
+mkdir -p "$work/dir-set/images" "$work/dir-set/annotations.csv"
+check "annotations are a directory" 2 "dir-set/annotations.csv: is a directory, not an annotation file" -- \
+  "$train" --evaluate-builtin --sim-test "$work/dir-set"
+mkdir -p "$work/endless-set/images" && ln -sf /dev/zero "$work/endless-set/annotations.csv"
+check "endless annotations" 2 "annotations.csv: larger than 64 MiB, the limit for an annotation file" -- \
+  "$train" --evaluate-builtin --sim-test "$work/endless-set"
+cp -r "$work/set" "$work/dir-image" && mkdir "$work/dir-image/images/999999.png"
+check "image is a directory" 2 "999999.png: is a directory, not an image" -- \
+  "$train" --evaluate-builtin --sim-test "$work/dir-image"
+"$sim" drive --scenario loop --max-frames 10 --out "$work/drive" >/dev/null 2>&1
+printf '50000000,0,stop,1,2,3,4,5,6,7,8\n' >>"$work/drive/visible.csv"
+check "drive frame beyond the drive" 2 "visible.csv:[0-9]+: frame 50000000 is beyond the drive's 10 frames \(frames.csv\)" -- \
+  timeout 20 "$train" --evaluate-builtin --sim-drive "$work/drive"
+check "model on a full disk" 1 "^markloop-train: /dev/full: cannot write: No space left on device" -- \
+  "$train" --sim "$work/set" --folds 0 --epochs 1 --members 1 --hidden 4 --out /dev/full
+check "dump into a file" 1 "^markloop-train: $work/file/mlp: cannot create the directory" -- \
+  bash -c ': >"$1/file" && "$2" --sim "$1/set" --folds 0 --epochs 1 --members 1 --hidden 4 --dump "$1/file"' - "$work" "$train"
 finish

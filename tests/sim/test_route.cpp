@@ -80,5 +80,43 @@ TEST_CASE("bad route files are refused with FILE:LINE and the reason") {
   expect("one.txt", kitti_line(0, 0), ": a route needs at least 2 poses, found 1");
   expect("short.txt", kitti_line(0, 0) + kitti_line(1, 0), ": the route is only");
   CHECK_FALSE(load_route("/nonexistent/route.txt", error));
-  CHECK(error == "/nonexistent/route.txt: cannot open the route file");
+  CHECK(error == "/nonexistent/route.txt: cannot open: No such file or directory");
+}
+
+TEST_CASE("routes that imply no real drive are refused before a world is laid") {
+  std::string error;
+  const auto expect = [&](const std::string& name, const std::string& text, const std::string& what) {
+    const auto path = write(name, text);
+    CHECK_FALSE(load_route(path, error));
+    INFO(error);
+    CHECK(error == path + what);
+  };
+  expect("jump.txt", kitti_line(0, 0) + kitti_line(10, 0) + kitti_line(1e7, 0),
+         ":3: 10000 km from the pose before: more than the 1000 m a route may step");
+  expect("far.txt", kitti_line(0, 0) + "1 0 0 0 0 1 0 0 0 0 1 1e12\n",
+         ":2: position (1000000000 km, 0 m) lies beyond 100000 km of the origin");
+  expect("tum-far.txt", "0 0 0 0 0 0 0 1\n1 0 -2e8 0 0 0 0 1\n",
+         ":2: position (0 m, -200000 km) lies beyond 100000 km of the origin");
+  // 101 km in steps of 1 km: the line that takes it past 100 km is named.
+  std::string long_route;
+  for (int i = 0; i <= 101; ++i) long_route += kitti_line(i * 1000.0, 0.0);
+  expect("long.txt", long_route, ":102: the route grows longer than 100 km here");
+
+  // A 90 km drive in steps of a metre, as a real dataset's, is a route.
+  std::string drive;
+  for (int i = 0; i <= 90000; ++i) drive += kitti_line(i % 2000 < 1000 ? i % 1000 : 1000 - i % 1000, 0.1 * (i / 1000));
+  const auto route = load_route(write("ninety.txt", drive), error);
+  INFO(error);
+  CHECK(route);
+
+  const auto dir = std::filesystem::temp_directory_path().string();
+  CHECK_FALSE(load_route(dir, error));
+  CHECK(error == dir + ": is a directory, not a route file");
+  const auto huge = write("huge.txt", "");
+  std::filesystem::resize_file(huge, kMaxRouteBytes + 1);  // sparse: nothing written
+  CHECK_FALSE(load_route(huge, error));
+  CHECK(error == huge + ": larger than 64 MiB, the limit for a route file");
+  std::filesystem::remove(huge);
+  CHECK_FALSE(load_route("/dev/zero", error));
+  CHECK(error == "/dev/zero: larger than 64 MiB, the limit for a route file");
 }

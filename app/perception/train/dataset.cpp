@@ -5,29 +5,28 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <map>
-#include <sstream>
+#include <string_view>
 #include <utility>
+
+#include "cli/tool_files.hpp"
 
 namespace markloop::perception::train {
 namespace {
 
-// The data lines of a CSV file (no quoting in ours), split at commas, with
-// errors as "FILE:LINE: what".
+// The data lines of a CSV file read whole (no quoting in ours), split at
+// commas, with errors as "FILE:LINE: what".
 class CsvReader {
  public:
-  explicit CsvReader(std::string path) : path_(std::move(path)), in_(path_) {}
+  CsvReader(std::string path, std::size_t max_bytes) : path_(std::move(path)), max_bytes_(max_bytes) {}
 
-  // Checks that the file opened and that its header line starts with
+  // Reads the file and checks that its header line starts with
   // `header_start`; `header` is the whole header, for the error.
   bool read_header(const std::string& header_start, const std::string& header, std::string& error) {
-    if (!in_) {
-      error = path_ + ": cannot open";
-      return false;
-    }
-    std::string line;
-    if (!std::getline(in_, line) || line.rfind(header_start, 0) != 0) {
+    if (!tools::read_input(path_, max_bytes_, "an annotation file", text_, error)) return false;
+    lines_ = tools::Lines(text_);
+    std::string_view line;
+    if (!lines_.next(line) || !line.starts_with(header_start)) {
       error = path_ + ":1: header must be " + header;
       return false;
     }
@@ -36,10 +35,8 @@ class CsvReader {
 
   // The fields of the next non-empty line; false at the end of the file.
   bool next(std::vector<std::string>& fields) {
-    std::string line;
-    while (std::getline(in_, line)) {
-      ++line_number_;
-      if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::string_view line;
+    while (lines_.next(line)) {
       if (line.empty()) continue;
       fields = split_csv_line(line);
       return true;
@@ -49,29 +46,43 @@ class CsvReader {
 
   // Sets `error` for the current line; false, to be returned.
   bool fail(const std::string& what, std::string& error) const {
-    error = path_ + ":" + std::to_string(line_number_) + ": " + what;
+    error = path_ + ":" + std::to_string(lines_.number()) + ": " + what;
     return false;
   }
 
  private:
-  static std::vector<std::string> split_csv_line(const std::string& line) {
+  // As std::getline splits: no field after a last comma.
+  static std::vector<std::string> split_csv_line(std::string_view line) {
     std::vector<std::string> fields;
-    std::stringstream ss(line);
-    std::string field;
-    while (std::getline(ss, field, ',')) fields.push_back(field);
+    while (!line.empty()) {
+      const std::size_t comma = line.find(',');
+      fields.emplace_back(line.substr(0, comma));
+      line = comma == std::string_view::npos ? std::string_view() : line.substr(comma + 1);
+    }
     return fields;
   }
 
   std::string path_;
-  std::ifstream in_;
-  int line_number_ = 1;  // the header
+  std::size_t max_bytes_;
+  std::string text_;
+  tools::Lines lines_{std::string_view()};
 };
+
+// The frames of a drive: frames.csv's data lines (one per frame).
+bool count_drive_frames(const std::string& dir, long& frames, std::string& error) {
+  CsvReader csv(dir + "/frames.csv", kMaxDriveFileBytes);
+  if (!csv.read_header("frame,t,x,y,yaw", "frame,t,x,y,yaw", error)) return false;
+  frames = 0;
+  std::vector<std::string> fields;
+  while (csv.next(fields)) ++frames;
+  return true;
+}
 
 }  // namespace
 
 bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images,
                       std::string& error) {
-  CsvReader csv(dir + "/annotations.csv");
+  CsvReader csv(dir + "/annotations.csv", kMaxAnnotationBytes);
   if (!csv.read_header("image,label,x1,y1", "image,label,x1,y1,x2,y2,x3,y3,x4,y4", error)) return false;
   std::map<std::string, AnnotatedImage> by_name;
   std::vector<std::string> fields;
@@ -113,7 +124,11 @@ bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& image
 
 bool load_drive_annotations(const std::string& dir, int step, std::vector<AnnotatedImage>& images,
                             std::string& error) {
-  CsvReader csv(dir + "/visible.csv");
+  // Frames without visible markings count too (false detections): those
+  // the drive has, up to the last with one.
+  long drive_frames = 0;
+  if (!count_drive_frames(dir, drive_frames, error)) return false;
+  CsvReader csv(dir + "/visible.csv", kMaxDriveFileBytes);
   if (!csv.read_header("frame,id,class,x1", "frame,id,class,x1,y1,...,x4,y4", error)) return false;
   std::map<long, AnnotatedImage> by_frame;
   long last_frame = -1;
@@ -125,6 +140,9 @@ bool load_drive_annotations(const std::string& dir, int step, std::vector<Annota
     const long frame = std::strtol(fields[0].c_str(), &end, 10);
     if (end == fields[0].c_str() || *end != '\0' || frame < 0 || frame > 100000000)
       return fail("bad frame number '" + fields[0] + "'");
+    if (frame >= drive_frames)
+      return fail("frame " + fields[0] + " is beyond the drive's " + std::to_string(drive_frames) +
+                  " frames (frames.csv)");
     last_frame = std::max(last_frame, frame);
     if (frame % step != 0) continue;
     Annotation a;
@@ -139,7 +157,6 @@ bool load_drive_annotations(const std::string& dir, int step, std::vector<Annota
     image.name = std::to_string(frame);
     image.annotations.push_back(a);
   }
-  // Frames without visible markings count too (false detections).
   for (long f = 0; f <= last_frame; f += step)
     if (by_frame.find(f) == by_frame.end()) by_frame[f].name = std::to_string(f);
   images.clear();

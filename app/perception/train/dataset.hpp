@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -21,13 +22,20 @@ struct AnnotatedImage {
   std::vector<bool> in_range;  // per annotation: wholly inside the detector's region
 };
 
-// Images in file-name order. False with `error` = "FILE:LINE: what is wrong".
+// Files read whole, up to these limits (checked first): the real dataset's
+// annotations several times over, a long drive's per-frame files.
+inline constexpr std::size_t kMaxAnnotationBytes = std::size_t{64} << 20;
+inline constexpr std::size_t kMaxDriveFileBytes = std::size_t{256} << 20;
+
+// Images in file-name order. False with `error` = "FILE:LINE: what is wrong"
+// ("FILE: what" when it cannot be read, is a directory or is too big).
 bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images,
                       std::string& error);
 
 // A simulator drive (markloop-sim drive): DIR/visible.csv
 // (`frame,id,class,x1,y1,...,x4,y4`) as annotations of every `step`-th frame
-// of DIR/frames.y4m; names are frame numbers.
+// of DIR/frames.y4m; names are frame numbers. Its frames must lie among
+// DIR/frames.csv's.
 bool load_drive_annotations(const std::string& dir, int step, std::vector<AnnotatedImage>& images,
                             std::string& error);
 
