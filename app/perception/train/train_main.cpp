@@ -413,7 +413,7 @@ struct TrainOptions {
   // Decay of the running average of the weights (0: the last step's are
   // kept). The last step's weights land wherever the last batches pushed
   // them; their average over the last few epochs sits nearer the bottom of
-  // the valley (app/perception/EXPERIMENTS.md: found more on every test set).
+  // the valley (docs/decisions.md: found more on every test set).
   float weight_average = 0.0f;
 };
 
@@ -430,9 +430,8 @@ void flush_subnormals_to_zero() {
 // Eigen splits a matrix product into blocks sized from the CPU's caches,
 // which it asks the CPU for at run time, and the blocks set the order in
 // which each sum is added up: the same command trained other weights on a
-// machine whose caches Eigen reads otherwise (EXPERIMENTS.md: two cache
-// sizes, two short cross-validations 559 / 618 and 560 / 614). Fixed sizes
-// (a common x86-64 core's) make the arithmetic the build's alone.
+// machine whose caches Eigen reads otherwise (docs/decisions.md). Fixed
+// sizes (a common x86-64 core's) make the arithmetic the build's alone.
 void fix_matrix_product_blocking() {
   constexpr std::ptrdiff_t kL1 = 32 * 1024, kL2 = 1024 * 1024, kL3 = 32 * 1024 * 1024;
   Eigen::setCpuCacheSizes(kL1, kL2, kL3);
