@@ -11,12 +11,12 @@
 
 #include <linux/videodev2.h>
 
+#include "cli/tool_files.hpp"
 #include "drivers/can/candump_log.hpp"
 #include "drivers/can/socketcan.hpp"
 #include "drivers/v4l2/v4l2_device.hpp"
 #include "drivers/v4l2/v4l2_output.hpp"
 #include "io/y4m.hpp"
-#include "cli/tool_files.hpp"
 
 namespace markloop::sim {
 

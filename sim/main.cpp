@@ -9,8 +9,8 @@
 #include <string_view>
 
 #include "cli/cli.hpp"
-#include "perception/camera_model.hpp"
 #include "cli/tool_files.hpp"
+#include "perception/camera_model.hpp"
 #include "sim/live.hpp"
 #include "sim/recorder.hpp"
 #include "sim/route.hpp"

@@ -10,12 +10,11 @@
 #include <random>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
-
+#include "cli/tool_files.hpp"
 #include "drivers/can/candump_log.hpp"
+#include "io/still_image.hpp"
 #include "io/y4m.hpp"
 #include "markloop/dbc/markloop_messages.hpp"
-#include "cli/tool_files.hpp"
 #include "sim/noise.hpp"
 
 namespace markloop::sim {
@@ -116,23 +115,6 @@ bool write_odometry(const Scenario& scenario, const RecordOptions& options, doub
   }
   summary.odometry_messages = messages;
   return log.close();
-}
-
-// Encoded in memory, then written as every output is: a failed write says
-// why (a full disk), where imwrite only returns false.
-bool write_png(const std::string& path, const cv::Mat& image, std::string& error) {
-  std::vector<std::uint8_t> png;
-  try {
-    if (!cv::imencode(".png", image, png)) png.clear();
-  } catch (const cv::Exception& e) {
-    error = path + ": cannot encode the PNG: " + e.what();
-    return false;
-  }
-  if (png.empty()) {
-    error = path + ": cannot encode the PNG";
-    return false;
-  }
-  return tools::write_whole_file(path, png.data(), png.size(), error);
 }
 
 }  // namespace
@@ -349,7 +331,7 @@ bool record_training_set(const perception::CameraModel& camera, const TrainingSe
     }
     renderer.render(pose, speed, c, k, occluders, image);
     const std::filesystem::path png = dir / "images" / (std::to_string(1000000 + k).substr(1) + ".png");
-    if (!write_png(png.string(), image, error)) return false;
+    if (!io::write_png(png.string(), image, error)) return false;
     for (const VisibleMarking& v : seen) write_quad_row(csv.get(), k, v, true);
     annotations += seen.size();
     if (options.progress && options.frames >= 50 && (k + 1) % (options.frames / 10) == 0)

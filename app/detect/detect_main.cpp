@@ -13,16 +13,15 @@
 #include <system_error>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "cli/cli.hpp"
+#include "cli/tool_files.hpp"
 #include "io/still_image.hpp"
 #include "perception/camera_model.hpp"
 #include "perception/marking_classes.hpp"
 #include "perception/marking_classifier.hpp"
 #include "perception/marking_detector.hpp"
-#include "cli/tool_files.hpp"
 
 namespace {
 
@@ -124,20 +123,7 @@ bool write_view(const markloop::perception::MarkingDetector& detector,
                   static_cast<double>(c.score), c.clipped ? " C" : "", joined ? " J" : "");
     cv::putText(view, text, top_left + cv::Point(0, -3), cv::FONT_HERSHEY_PLAIN, 0.8, colour, 1);
   }
-  // Encoded in memory, then written as every output is: a failed write says
-  // why (a full disk), where imwrite only returns false.
-  std::vector<std::uint8_t> png;
-  try {
-    if (!cv::imencode(".png", view, png)) png.clear();
-  } catch (const cv::Exception& e) {
-    error = path + ": cannot encode the PNG: " + e.what();
-    return false;
-  }
-  if (png.empty()) {
-    error = path + ": cannot encode the PNG";
-    return false;
-  }
-  return markloop::tools::write_whole_file(path, png.data(), png.size(), error);
+  return markloop::io::write_png(path, view, error);
 }
 
 // Why a path named as an image cannot be read as one, or nothing (a file, a

@@ -2,10 +2,10 @@
 
 #include <string_view>
 
+#include "cli/tool_files.hpp"
 #include "drivers/can/candump_log.hpp"
 #include "eval/inputs.hpp"
 #include "markloop/dbc/loop_detection_assembler.hpp"
-#include "cli/tool_files.hpp"
 
 namespace markloop::eval {
 

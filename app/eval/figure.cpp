@@ -11,8 +11,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "perception/marking_classes.hpp"
 #include "cli/tool_files.hpp"
+#include "perception/marking_classes.hpp"
 
 namespace markloop::eval {
 

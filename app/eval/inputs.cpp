@@ -8,9 +8,9 @@
 #include <optional>
 #include <string_view>
 
+#include "cli/tool_files.hpp"
 #include "perception/marking_classes.hpp"
 #include "replay/paper_format.hpp"
-#include "cli/tool_files.hpp"
 
 namespace markloop::eval {
 

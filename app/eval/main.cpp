@@ -10,12 +10,12 @@
 #include <vector>
 
 #include "cli/cli.hpp"
+#include "cli/tool_files.hpp"
 #include "eval/can_log.hpp"
 #include "eval/figure.hpp"
 #include "eval/inputs.hpp"
 #include "eval/scoring.hpp"
 #include "replay/paper_format.hpp"
-#include "cli/tool_files.hpp"
 #include "replay/truth_judge.hpp"
 
 namespace {

@@ -9,6 +9,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "cli/tool_files.hpp"
 #include "platform/files.hpp"
 
 namespace markloop::io {
@@ -172,6 +173,21 @@ cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::stri
     return {};
   }
   return grey;
+}
+
+bool write_png(const std::string& path, const cv::Mat& image, std::string& error) {
+  std::vector<std::uint8_t> png;
+  try {
+    if (!cv::imencode(".png", image, png)) png.clear();
+  } catch (const cv::Exception& e) {
+    error = path + ": cannot encode the PNG: " + e.what();
+    return false;
+  }
+  if (png.empty()) {
+    error = path + ": cannot encode the PNG";
+    return false;
+  }
+  return tools::write_whole_file(path, png.data(), png.size(), error);
 }
 
 }  // namespace markloop::io

@@ -37,4 +37,9 @@ cv::Size declared_still_size(std::span<const std::uint8_t> bytes);
 // the path: the caller adds it).
 cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::string& error);
 
+// `image` as a PNG file, encoded in memory and then written whole and
+// checked: false with "PATH: why" in `error` (a full disk, where imwrite
+// would only return false).
+bool write_png(const std::string& path, const cv::Mat& image, std::string& error);
+
 }  // namespace markloop::io

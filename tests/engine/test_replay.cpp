@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
+#include "cli/tool_files.hpp"
 #include "replay/paper_format.hpp"
 #include "replay/replay.hpp"
-#include "cli/tool_files.hpp"
 #include "replay/truth_judge.hpp"
 #include "sim/drive.hpp"
 #include "sim/world.hpp"

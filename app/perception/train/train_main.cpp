@@ -33,6 +33,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "cli/cli.hpp"
+#include "cli/tool_files.hpp"
 #include "io/still_image.hpp"
 #include "io/y4m.hpp"
 #include "perception/camera_model.hpp"
@@ -41,7 +42,6 @@
 #include "perception/marking_detector.hpp"
 #include "perception/train/dataset.hpp"
 #include "platform/files.hpp"
-#include "cli/tool_files.hpp"
 
 namespace {
 
