@@ -2,6 +2,7 @@
 // --compat) on detections recorded in the paper's dataset format.
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -10,6 +11,7 @@
 #include <memory>
 #include <new>
 #include <numbers>
+#include <span>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -17,10 +19,10 @@
 
 #include "cli/cli.hpp"
 #include "cli/memory_check.hpp"
+#include "cli/tool_files.hpp"
 #include "replay/compat.hpp"
 #include "replay/paper_format.hpp"
 #include "replay/replay.hpp"
-#include "cli/tool_files.hpp"
 
 namespace {
 
@@ -60,7 +62,8 @@ engine:
 
   --compat               run the authors' batch program instead: frame gap
                          T = 30, match gap 100 T, distance tolerance 2 m, same
-                         matches in the same order (only --k applies)
+                         matches in the same order (only --k applies); a long
+                         run reports its progress on stderr unless --quiet
 
 output:
   --out FILE             matches in the authors' image_matches.txt format
@@ -145,7 +148,7 @@ Options parse(int argc, char** argv) {
   return o;
 }
 
-void write_frames(FILE* f, const std::vector<int>& frames) {
+void write_frames(FILE* f, std::span<const int> frames) {
   for (const int frame : frames) std::fprintf(f, "%d ", frame);
   std::fputc('\n', f);
 }
@@ -218,10 +221,26 @@ void print_evaluation(const Evaluation& e) {
                 e.rotation_error_max_deg, e.pose_errors);
 }
 
-std::vector<FramePair> compat_pairs(const std::vector<CompatMatch>& matches) {
+// A long --compat run says how far it is on stderr, every few seconds.
+CompatProgressReport compat_progress(bool quiet) {
+  if (quiet) return {};
+  using Clock = std::chrono::steady_clock;
+  return [next = Clock::now() + std::chrono::seconds(3)](const CompatProgress& p) mutable {
+    if (Clock::now() < next) return;
+    next = Clock::now() + std::chrono::seconds(3);
+    std::fprintf(stderr, "%s: --compat: %zu / %zu records read, %zu sequences made", program_name(),
+                 p.records_read, p.records, p.sequences);
+    if (p.searched > 0)
+      std::fprintf(stderr, ", %zu / %zu complete ones searched", p.searched, p.complete);
+    std::fprintf(stderr, ", %zu matches found\n", p.matches);
+  };
+}
+
+std::vector<FramePair> compat_pairs(const CompatMatches& matches) {
   std::vector<FramePair> pairs;
-  for (const CompatMatch& m : matches)
-    pairs.push_back({static_cast<FrameIndex>(m.later.back()), static_cast<FrameIndex>(m.earlier.back())});
+  for (std::size_t i = 0; i < matches.size(); ++i)
+    pairs.push_back({static_cast<FrameIndex>(matches.later(i).back()),
+                     static_cast<FrameIndex>(matches.earlier(i).back())});
   return pairs;
 }
 
@@ -303,13 +322,13 @@ int replay_main(int argc, char** argv) {
     if (o.compat) {
       CompatParameters parameters;
       parameters.k = k;
-      const auto matches = run_compat(records, parameters);
+      const auto matches = run_compat(records, parameters, compat_progress(o.quiet));
       if (write && !o.out.empty()) {
         tools::OutputFile f;
         if (!f.open(o.out, error)) tools::fail_run(error);
-        for (const CompatMatch& m : matches) {
-          write_frames(f.get(), m.earlier);
-          write_frames(f.get(), m.later);
+        for (std::size_t i = 0; i < matches.size(); ++i) {
+          write_frames(f.get(), matches.earlier(i));
+          write_frames(f.get(), matches.later(i));
         }
         if (!f.close(error)) tools::fail_run(error);
       }

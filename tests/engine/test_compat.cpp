@@ -2,6 +2,7 @@
 // rules (frame gap T = 30, match gap 3000, distance tolerance 2 m).
 #include <catch2/catch_test_macros.hpp>
 
+#include <limits>
 #include <vector>
 
 #include "replay/compat.hpp"
@@ -12,10 +13,13 @@ namespace {
 MarkingRecord rec(int frame, float x, float y, float z, const char* label) {
   return {frame, x, y, z, label, 0};
 }
-std::vector<CompatMatch> run(const std::vector<MarkingRecord>& records, unsigned k) {
+// Both implementations, which must agree.
+CompatMatches run(const std::vector<MarkingRecord>& records, unsigned k) {
   CompatParameters p;
   p.k = k;
-  return run_compat(records, p);
+  CompatMatches matches = run_compat(records, p);
+  CHECK(matches == run_compat_reference(records, p));
+  return matches;
 }
 }  // namespace
 
@@ -88,4 +92,47 @@ TEST_CASE("compat: a record joins every open sequence", "[compat]") {
   REQUIRE(matches.size() == 1);
   CHECK(matches[0].earlier == std::vector<int>{0, 40, 80});
   CHECK(matches[0].later == std::vector<int>{5000, 5040, 5080});
+}
+
+// Progress: records read and sequences made, then complete sequences
+// searched and matches found, the last report giving the totals.
+TEST_CASE("compat: progress reports end with the totals", "[compat]") {
+  std::vector<MarkingRecord> records;
+  for (int drive = 0; drive < 3; ++drive)
+    for (int i = 0; i < 1500; ++i)  // more than one report's worth
+      records.push_back(rec(drive * 100000 + i * 31, 0, 0, float(i % 7), i % 3 ? "A" : "B"));
+  CompatParameters p;
+  std::vector<CompatProgress> reports;
+  const CompatMatches matches =
+      run_compat(records, p, [&](const CompatProgress& r) { reports.push_back(r); });
+  REQUIRE(reports.size() >= 2);
+  const CompatProgress& last = reports.back();
+  CHECK(last.records == records.size());
+  CHECK(last.records_read == records.size());
+  CHECK(last.sequences >= last.complete);
+  CHECK(last.searched == last.complete);
+  CHECK(last.matches == matches.size());
+  CHECK(matches.size() > 0);
+  CHECK(reports.front().records_read < records.size());
+}
+
+// Distances that overflow float: infinite ones match only within an
+// infinite tolerance (inf - 0 <= inf), never within a finite or NaN one.
+//   k = 2: [0 30] d=inf, [30 3000] d=inf, [3000 3030] d=0; only the first
+//   and the last are 3000 frames apart at both elements.
+TEST_CASE("compat: infinite distances and tolerances", "[compat]") {
+  const std::vector<MarkingRecord> records{rec(0, 0, 0, 0, "A"), rec(30, 1e30f, 0, 0, "A"),
+                                           rec(3000, 0, 0, 0, "A"), rec(3030, 0, 0, 0, "A")};
+  CompatParameters p;
+  p.k = 2;
+  CHECK(run_compat(records, p).empty());
+  p.distance_tolerance = std::numeric_limits<float>::infinity();
+  const CompatMatches matches = run_compat(records, p);
+  CHECK(matches == run_compat_reference(records, p));
+  REQUIRE(matches.size() == 1);
+  CHECK(matches[0].earlier == std::vector<int>{0, 30});
+  CHECK(matches[0].later == std::vector<int>{3000, 3030});
+  p.distance_tolerance = std::numeric_limits<float>::quiet_NaN();
+  CHECK(run_compat(records, p).empty());
+  CHECK(run_compat_reference(records, p).empty());
 }
