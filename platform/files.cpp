@@ -64,12 +64,20 @@ std::error_code read_file_bounded(const char* path, std::size_t max_bytes, std::
   }
 }
 
+std::error_code refuse_pipe(const char* path) noexcept {
+  struct stat info {};
+  if (::stat(path, &info) == 0 && (S_ISFIFO(info.st_mode) || S_ISSOCK(info.st_mode))) return make_error(ESPIPE);
+  return {};
+}
+
 std::string describe_read_error(const std::string& path, std::error_code ec, std::size_t max_bytes,
                                 const char* what) {
   if (ec.value() == EFBIG && ec.category() == std::system_category())
     return path + ": larger than " + size_text(max_bytes) + ", the limit for " + what;
   if (ec.value() == EISDIR && ec.category() == std::system_category())
     return path + ": is a directory, not " + what;
+  if (ec.value() == ESPIPE && ec.category() == std::system_category())
+    return path + ": is a pipe or socket, not " + what + " (it is read more than once: give a file)";
   if (ec.value() == EIO && ec.category() == std::system_category()) return path + ": read error: " + ec.message();
   return path + ": cannot open: " + ec.message();
 }

@@ -19,8 +19,13 @@ namespace markloop::platform {
 // The whole file at `path` into `out`. A directory fails with EISDIR; a file
 // larger than `max_bytes` fails with EFBIG before it is read (regular files)
 // or once `max_bytes` + 1 bytes have arrived (pipes, devices such as
-// /dev/zero), so that no input can make the reader grow without bound.
+// /dev/zero), so that no input can make the reader grow without bound. A
+// FIFO waits for its writer, as `cat` would.
 std::error_code read_file_bounded(const char* path, std::size_t max_bytes, std::string& out);
+
+// ESPIPE when `path` is a FIFO or socket: for a file that is read more than
+// once, whose second reader would wait for a writer that has gone.
+std::error_code refuse_pipe(const char* path) noexcept;
 
 // "PATH: what is wrong" for an error of read_file_bounded() or InputStream,
 // naming the limit for EFBIG ("larger than 1 MiB, the limit for a WHAT").

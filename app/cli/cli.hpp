@@ -36,6 +36,9 @@ inline const char* option_value(int argc, char** argv, int& i,
     fail((option.starts_with("-") ? "unknown option " : "unexpected argument ") + std::string(option) +
          " (see --help)");
   if (i + 1 >= argc) fail(std::string(option) + " needs a value (see --help)");
+  // "--map --quiet" is a forgotten value, not a file named "--quiet".
+  if (std::string_view(argv[i + 1]).starts_with("--"))
+    fail(std::string(option) + " needs a value, got the option " + argv[i + 1] + " (see --help)");
   return argv[++i];
 }
 

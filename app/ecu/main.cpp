@@ -4,9 +4,11 @@
 #include <new>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include "cli/cli.hpp"
 #include "cli/memory_check.hpp"
+#include "cli/tool_files.hpp"
 #include "ecu/config.hpp"
 #include "ecu/runner.hpp"
 
@@ -57,6 +59,30 @@ an input that turns out damaged during the run: the map is then saved as it
 stood after the last whole frame). See docs/inputs-and-faults.md.
 )";
 
+// The files markloop reads and those it replaces must differ: a map or an
+// output named like an input would destroy it. Empty when they do.
+std::string overlapping_files(const markloop::ecu::EcuConfig& config, const std::string& summary,
+                              const std::string& config_file) {
+  using Role = std::pair<const char*, const std::string*>;
+  const Role inputs[] = {{"--camera-file", &config.camera.file}, {"--can-in", &config.can.in_log},
+                         {"--calibration", &config.calibration}, {"--config", &config_file},
+                         {"--map", &config.map_file}};
+  const Role outputs[] = {{"--map", &config.map_file},
+                          {"--can-out", &config.can.out_log},
+                          {"--detections-out", &config.detections_out},
+                          {"--landmarks-out", &config.landmarks_out},
+                          {"--summary", &summary}};
+  for (const auto& [output_option, output] : outputs) {
+    for (const auto& [input_option, input] : inputs) {
+      if (output->empty() || input->empty() || output == input) continue;
+      if (*output == *input || markloop::tools::overwrites(*output, *input))
+        return std::string(output_option) + " " + *output + " is the file given as " + input_option +
+               ": it would be overwritten";
+    }
+  }
+  return {};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -66,6 +92,7 @@ int main(int argc, char** argv) {
   markloop::ecu::EcuConfig& config = options.config;
 
   // The configuration file first, so that flags override it wherever they stand.
+  std::string config_file;
   for (int i = 1; i < argc; ++i) {
     const std::string_view arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -73,10 +100,11 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (arg == "--config") {
-      if (i + 1 >= argc) fail("--config needs a value (see --help)");
+      if (i + 1 >= argc || std::string_view(argv[i + 1]).starts_with("--"))
+        fail("--config needs a value (see --help)");
       if (std::string error = markloop::ecu::load_config_file(argv[i + 1], config); !error.empty())
         fail(error);
-      ++i;
+      config_file = argv[++i];
     }
   }
   bool print_config = false;
@@ -118,6 +146,8 @@ int main(int argc, char** argv) {
     }
   }
   if (std::string error = markloop::ecu::validate_config(config); !error.empty()) fail(error);
+  if (std::string error = overlapping_files(config, options.summary_json, config_file); !error.empty())
+    fail(error);
   if (std::string error = markloop::cli::database_memory_error(
           config.engine.database, config.engine.chain.k, "database.landmark_capacity",
           "database.sequence_capacity");

@@ -288,16 +288,18 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
   if (got < kMapHeaderBytes) return reject("truncated header (" + std::to_string(got) + " bytes)");
   if (get32(&header[60]) != crc32(std::span<const std::uint8_t>(header.data(), 60)))
     return reject("header checksum mismatch");
+  // A sound map of another version or k is someone's data, not damage.
   const std::uint32_t version = get32(&header[8]);
   if (version != kMapVersion)
-    return reject("map version " + std::to_string(version) + ", this markloop reads version " +
-                  std::to_string(kMapVersion));
+    return unusable("map version " + std::to_string(version) + ", this markloop reads version " +
+                    std::to_string(kMapVersion) + "; the map is left as it is");
   const std::uint32_t k = get32(&header[16]);
   if (get32(&header[12]) != kMapHeaderBytes || get32(&header[20]) != kMapLandmarkBytes)
     return reject("unexpected header or record size");
   if (k != database.k())
-    return reject("map made with k = " + std::to_string(k) + ", this ECU uses k = " +
-                  std::to_string(database.k()));
+    return unusable("map made with k = " + std::to_string(k) + ", this ECU uses k = " +
+                    std::to_string(database.k()) + "; the map is left as it is (set engine.k to match, or "
+                    "use another map file)");
   const std::uint64_t landmark_count = get64(&header[24]);
   const std::uint64_t sequence_count = get64(&header[32]);
   const std::uint64_t payload_bytes = get64(&header[40]);

@@ -25,9 +25,10 @@
 // - Loading checks everything (size, magic, version, k, checksums, every
 //   value and index) before trusting the file; a file that fails is renamed
 //   aside to PATH.corrupt-<unix time>[-N], never over an earlier one, and
-//   the ECU starts with an empty map. A file that cannot be read, or that
-//   holds more than the database can, is left alone and the ECU refuses to
-//   start (it would overwrite or shrink the map at exit).
+//   the ECU starts with an empty map. A file that cannot be read, a sound
+//   map of another version or k, or one that holds more than the database
+//   can, is left alone and the ECU refuses to start (it would overwrite or
+//   shrink the map at exit).
 #pragma once
 
 #include <array>

@@ -149,6 +149,8 @@ bool read_number(const cv::FileNode& node, double& out) {
 // Larger coefficients describe no lens: the distortion polynomial would fold
 // the image over itself.
 constexpr double kMaxDistortion = 100.0;
+// A longer focal length would be a telescope (a 1 mm pixel at 100 km).
+constexpr double kMaxFocalPixels = 100000.0;
 
 // True when some of the road where markings are detected lies in the image.
 bool sees_road(const CameraModel& model) {
@@ -206,8 +208,10 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
     k.fy = K(1, 1);
     k.cx = K(0, 2);
     k.cy = K(1, 2);
-    if (!(k.fx > 0 && k.fy > 0) || !K.allFinite())
-      return fail("camera_matrix needs positive, finite focal lengths");
+    if (!(k.fx > 0 && k.fy > 0) || !K.allFinite() || k.fx > kMaxFocalPixels || k.fy > kMaxFocalPixels)
+      return fail("camera_matrix needs focal lengths of 0 to " + std::to_string(int(kMaxFocalPixels)) + " pixels");
+    if (k.cx < 0 || k.cy < 0 || k.cx >= w || k.cy >= h)
+      return fail("camera_matrix's principal point lies outside the image");
     if (!fs["distortion_coefficients"].empty()) {
       cv::Mat d;
       if (read_small_matrix(fs["distortion_coefficients"], 5, d)) d.convertTo(d, CV_64F);

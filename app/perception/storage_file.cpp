@@ -85,7 +85,10 @@ std::size_t first_line_too_deep(std::string_view text) {
 
 std::optional<cv::FileStorage> open_storage_file(const std::string& path, std::string& error) {
   std::string text;
-  if (auto ec = platform::read_file_bounded(path.c_str(), kMaxStorageFileBytes, text)) {
+  // The calibration is opened twice (camera, detector settings).
+  std::error_code ec = platform::refuse_pipe(path.c_str());
+  if (!ec) ec = platform::read_file_bounded(path.c_str(), kMaxStorageFileBytes, text);
+  if (ec) {
     error = platform::describe_read_error(path, ec, kMaxStorageFileBytes, "a calibration file");
     return std::nullopt;
   }

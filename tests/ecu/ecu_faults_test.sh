@@ -77,6 +77,23 @@ check "map behind a symbolic link" 0 "map saved to link.map" -- \
   "${ecu[@]}" --camera-file frames.y4m --can-in can.log --map link.map
 [ -L link.map ] || { echo "FAIL the link was replaced by a file"; failures=$((failures + 1)); }
 
+# A map or an output named like an input would destroy it.
+cp can.log kept.log
+kept_sha=$(sha kept.log)
+check "map is the CAN log" 2 "^markloop: --map kept.log is the file given as --can-in" -- \
+  "${ecu[@]}" --camera-file frames.y4m --can-in kept.log --map kept.log
+ln -s kept.log kept-link.log
+check "output is an input under another name" 2 "^markloop: --can-out kept-link.log is the file given as --can-in" -- \
+  "${ecu[@]}" --camera-file frames.y4m --can-in kept.log --can-out kept-link.log
+printf 'engine.k = 4\n' >kept.conf
+check "summary is the configuration" 2 "^markloop: --summary kept.conf is the file given as --config" -- \
+  "${run[@]}" --config kept.conf --summary kept.conf
+[ "$(sha kept.log)" = "$kept_sha" ] && grep -q "engine.k" kept.conf || { echo "FAIL an input was changed"; failures=$((failures + 1)); }
+check "forgotten value" 2 "^markloop: --map needs a value, got the option --quiet" -- "${run[@]}" --map --quiet
+mkfifo calibration.fifo
+check "calibration through a FIFO" 2 "^markloop: calibration.fifo: is a pipe or socket, not a calibration file" -- \
+  timeout 10 "${run[@]}" --calibration calibration.fifo
+
 # Unreadable: run as an unprivileged user where we are root (root reads anything).
 as_user=()
 [ "$(id -u)" = 0 ] && command -v setpriv >/dev/null && as_user=(setpriv --reuid=nobody --regid=nogroup --clear-groups)

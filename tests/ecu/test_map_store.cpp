@@ -216,7 +216,7 @@ TEST_CASE("every single flipped bit is detected") {
   }
 }
 
-TEST_CASE("foreign files, other versions and another k are rejected with the reason") {
+TEST_CASE("foreign files are set aside; other versions and another k are refused and left alone") {
   const std::string dir = fresh_dir("foreign");
   const std::string path = dir + "/map.bin";
   const MatchConfig match;
@@ -241,15 +241,18 @@ TEST_CASE("foreign files, other versions and another k are rejected with the rea
   for (int i = 0; i < 4; ++i) bytes[60 + i] = static_cast<char>(crc >> (8 * i));
   write_bytes(path, bytes, bytes.size());
   result = store.load(db, match);
-  CHECK(result.outcome == ecu::MapLoadOutcome::kRejected);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kUnusable);  // sound, but not ours to read: left alone
   CHECK_THAT(result.message, ContainsSubstring("map version 2"));
+  CHECK(read_bytes(path) == bytes);
 
-  // Made with another k.
+  // Made with another k: left alone too.
   REQUIRE_FALSE(store.save(saved));
+  const std::vector<char> saved_bytes = read_bytes(path);
   SequenceDatabase other_k(small_capacity(), match, 5);
   result = store.load(other_k, match);
-  CHECK(result.outcome == ecu::MapLoadOutcome::kRejected);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kUnusable);
   CHECK_THAT(result.message, ContainsSubstring("k = 4, this ECU uses k = 5"));
+  CHECK(read_bytes(path) == saved_bytes);
 }
 
 TEST_CASE("a failed save leaves the previous map intact and no temporary behind") {

@@ -193,6 +193,12 @@ TEST_CASE("Calibrations that would crash the parser or describe no usable camera
   write_file(sideways, pinhole + "mount_pitch_deg: 12\nmount_yaw_deg: 90\n");
   CHECK_FALSE(load_camera_model(sideways.string(), error));
   CHECK(error.find("sideways.yaml: the camera sees no road") != std::string::npos);
+  const auto telescope = scratch("telescope.yaml");
+  write_file(telescope, header + "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+                                 "  data: [ 1e308, 0., 639.5, 0., 900., 255.5, 0., 0., 1. ]\n"
+                                 "mount_height: 1.5\nmount_pitch_deg: 12\n");
+  CHECK_FALSE(load_camera_model(telescope.string(), error));
+  CHECK(error.find("telescope.yaml: camera_matrix needs focal lengths of 0 to 100000 pixels") != std::string::npos);
   const auto level = scratch("level.yaml");
   write_file(level, pinhole + "mount_pitch_deg: 12\n");
   CHECK(load_camera_model(level.string(), error));

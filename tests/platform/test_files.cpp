@@ -3,6 +3,7 @@
 #include <catch2/catch_test_macros.hpp>
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -44,6 +45,10 @@ TEST_CASE("read_file_bounded reads up to its limit and names what it refuses") {
   CHECK(platform::read_file_bounded("/dev/zero", 1 << 20, text).value() == EFBIG);
   CHECK(platform::read_file_bounded(dir.c_str(), 1 << 20, text).value() == EISDIR);
   CHECK(platform::read_file_bounded((dir / "none").c_str(), 1 << 20, text).value() == ENOENT);
+  // A FIFO is read as its writer writes, and refused where it would be read twice.
+  REQUIRE(::mkfifo((dir / "fifo").c_str(), 0644) == 0);
+  CHECK(platform::refuse_pipe((dir / "fifo").c_str()).value() == ESPIPE);
+  CHECK_FALSE(platform::refuse_pipe((dir / "ten").c_str()));
 
   const auto message = [](std::error_code ec) {
     return platform::describe_read_error("F", ec, 1 << 20, "a configuration file");
@@ -51,6 +56,8 @@ TEST_CASE("read_file_bounded reads up to its limit and names what it refuses") {
   CHECK(message(platform::make_error(EFBIG)) == "F: larger than 1 MiB, the limit for a configuration file");
   CHECK(message(platform::make_error(EISDIR)) == "F: is a directory, not a configuration file");
   CHECK(message(platform::make_error(ENOENT)) == "F: cannot open: No such file or directory");
+  CHECK(message(platform::make_error(ESPIPE)) ==
+        "F: is a pipe or socket, not a configuration file (it is read more than once: give a file)");
 }
 
 TEST_CASE("InputStream reads a pipe in order and a stop request ends a wait for data") {
