@@ -44,6 +44,11 @@ struct StatusSummary {
 
 struct EcuCanLog {
   std::vector<LoopReport> loops;
+  // LoopDetection and Status frames of a length the DBC does not give them
+  // (counted under wrong_length): the first one's line and length.
+  std::size_t first_wrong_length_line = 0;
+  std::size_t first_wrong_length_bytes = 0;
+  std::size_t first_wrong_length_want = 0;
   RejectCounts loop_frames;
   RejectCounts status_frames;
   std::uint64_t detections_started = 0;  // accepted first pages
@@ -53,10 +58,29 @@ struct EcuCanLog {
   StatusSummary status;
 };
 
+// The drive's clock, by its frames' times (frames.csv): the ECU stamps its
+// log with it, so every stamp lies from kStampsBeforeDrive_s before the
+// first frame to kStampsAfterDrive_s after the last one.
+struct DriveTimes {
+  double first_s = 0.0;
+  double last_s = 0.0;
+};
+inline constexpr double kStampsBeforeDrive_s = 10.0;
+inline constexpr double kStampsAfterDrive_s = 60.0;
+
 // Reads the whole log (up to kMaxInputBytes). Returns false with
 // "FILE:LINE:COLUMN: what in 'line'" on a line that is not a candump -l
-// frame, or "FILE: what" when the file cannot be read. Frames
-// that parse but fail the E2E checks are not errors: they are counted.
-bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& error);
+// frame, "FILE:LINE: what" on a stamp that goes back in time or (with
+// `drive`) lies outside the drive, or on a last line cut short (no newline,
+// and a LoopDetection or Status frame too short), or "FILE: what" when the
+// file cannot be read. Frames that parse but fail the E2E checks are not
+// errors: they are counted.
+bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& error,
+                      const DriveTimes* drive = nullptr);
+
+// What a log that was read deserves a word about (one message each, naming
+// the file): frames of the wrong length on the ECU's ids, no frame of the
+// ECU at all.
+std::vector<std::string> can_log_warnings(const std::string& path, const EcuCanLog& log);
 
 }  // namespace markloop::eval

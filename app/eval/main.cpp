@@ -87,7 +87,11 @@ figures:
                      40 m before its end, is not judged
 
 Each input file is read whole and may hold up to 256 MiB; no output may be
-one of them.
+one of them. The CAN log's stamps must be the drive's clock (as the ECU
+stamps it in file mode): in send order, from 10 s before frames.csv's first
+frame to 60 s after its last; a last line cut short is an error. Frames of
+the wrong length on the ECU's ids, and a log without any frame of the ECU,
+are warned about on stderr.
 
 Exit status: 0 on success; 1 when an output cannot be written (PATH: why);
 2 on bad input or options (FILE:LINE: what).
@@ -446,8 +450,12 @@ int main(int argc, char** argv) {
   std::vector<WorldMarking> world;
   if (!load_world_markings(dir / "markings.csv", world, error)) fail(error);
 
+  // The log's stamps must be the drive's clock (frames.csv's times).
+  const DriveTimes drive{times.empty() ? 0.0 : times.front(), times.empty() ? 0.0 : times.back()};
   EcuCanLog log;
-  if (!read_ecu_can_log(o.can, log, error)) fail(error);
+  if (!read_ecu_can_log(o.can, log, error, times.empty() ? nullptr : &drive)) fail(error);
+  for (const std::string& warning : can_log_warnings(o.can, log))
+    std::fprintf(stderr, "%s: warning: %s\n", program_name(), warning.c_str());
 
   const replay::TruthJudge judge(route, o.tolerance, kRevisitSeparation_m);
   const LoopScore loops = score_loops(judge, times, log.loops);

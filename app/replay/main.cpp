@@ -44,21 +44,31 @@ input:
   --poses FILE           one camera pose per frame (KITTI 3x4 [R|t]); the
                          source of travelled distance. Without it, distance
                          is measured along the markings themselves
-  --fps HZ               frame rate, for time, up to 1000000; default 10
+  --fps HZ               frame rate, for time, 0.001 to 1000000; default 10
 
-engine:
-  --k N                  sequence length; default 4
-  --abs-tol M            distance tolerance, absolute part; default 0.5
-  --rel-tol R            distance tolerance, relative part; default 0.02
-  --min-separation M     a match lies at least this far back; default 100
-  --min-separation-s S   ... and at least this long ago; default 10
-  --max-residual M       largest RMS residual of the rigid fit; default 0.5
-  --association-radius M observations of one marking lie this close; default 1.5
-  --commit-after S       a marking unseen this long has left view; default 0.5
-  --min-observations N   detections needed to make a landmark; default 2
+engine (each value must lie in the range given):
+  --k N                  sequence length, 2 to 10; default 4
+  --abs-tol M            distance tolerance, absolute part, 0.001 to 100 m;
+                         default 0.5
+  --rel-tol R            distance tolerance, relative part, 0 to 0.1;
+                         default 0.02
+  --min-separation M     a match lies at least this far back, 0 to 10000 m;
+                         default 100
+  --min-separation-s S   ... and at least this long ago, 0 to 86400 s;
+                         default 10
+  --max-residual M       largest RMS residual of the rigid fit, 0.001 to
+                         100 m; default 0.5
+  --association-radius M observations of one marking lie this close, 0.01 to
+                         100 m; default 1.5
+  --commit-after S       a marking unseen this long has left view, 0.01 to
+                         100 s; default 0.5
+  --min-observations N   detections needed to make a landmark, 1 to 1000;
+                         default 2
   --skip-rows N          rows a sequence may step over, 0 or 1; default 1
-  --sequence-capacity N  database size in sequences; default 1048576
-  --landmark-capacity N  database size in landmarks; default 262144
+  --sequence-capacity N  database size in sequences, 16 to 1073741824 (2^30);
+                         default 1048576
+  --landmark-capacity N  database size in landmarks, 16 to 1073741824 (2^30);
+                         default 262144
 
   --compat               run the authors' batch program instead: frame gap
                          T = 30, match gap 100 T, distance tolerance 2 m, same
@@ -72,15 +82,20 @@ output:
                          report correct and wrong matches, revisit recall and
                          relative pose error
   --truth-radius M       a match is correct when the two frames' true
-                         positions are this close, up to 10000; default 10
-  --sweep A..B           run k = A..B and print a table of matches (and, with
-                         --truth, the share of correct ones)
+                         positions are this close, 0.01 to 10000 m; default 10
+  --sweep A..B           run k = A..B (2 <= A <= B <= 10) and print a table
+                         of matches (and, with --truth, the share of correct
+                         ones)
   --quiet                print only the summary
   --help                 this text
 
 Input files are read whole: --markings, --poses and --truth may hold up to
 256 MiB each. --poses and --truth must hold a pose for every frame the
 markings use. An output may not be one of the input files.
+
+A numeric option that is no number or lies outside its range is refused
+(exit status 2) naming the option and its range; the engine checks the
+settings as a whole last.
 
 Exit status: 0 on success; 1 when an output cannot be written; 2 on bad
 options or input, or a database larger than the memory available.
@@ -95,6 +110,63 @@ struct Options {
   unsigned sweep_first = 0, sweep_last = 0;
   EngineConfig engine;
 };
+
+// The documented range of a numeric option (see kUsage), checked where the
+// option is parsed so that the message names it: the engine's validate()
+// stays the last check, of the whole configuration.
+struct Range {
+  double min, max;
+  const char* unit;  // "" for a count or a ratio
+  bool whole;        // a count: no fractions
+};
+
+constexpr Range kFpsRange{0.001, 1e6, "Hz", false};
+constexpr Range kTruthRadiusRange{0.01, 10000.0, "metres", false};
+constexpr Range kKRange{2, kMaxSequenceLength, "", true};
+constexpr Range kAbsTolRange{0.001, 100.0, "metres", false};
+constexpr Range kRelTolRange{0.0, 0.1, "", false};
+constexpr Range kMinSeparationRange{0.0, 10000.0, "metres", false};
+constexpr Range kMinSeparationSRange{0.0, 86400.0, "seconds", false};
+constexpr Range kMaxResidualRange{0.001, 100.0, "metres", false};
+constexpr Range kAssociationRadiusRange{0.01, 100.0, "metres", false};
+constexpr Range kCommitAfterRange{0.01, 100.0, "seconds", false};
+constexpr Range kMinObservationsRange{1, 1000, "", true};
+constexpr Range kSkipRowsRange{0, 1, "", true};
+constexpr Range kCapacityRange{16, double(std::size_t{1} << 30), "", true};
+
+std::string number_text(double v) {
+  char buf[64];
+  if (v == std::floor(v) && std::fabs(v) < 1e15) std::snprintf(buf, sizeof buf, "%.0f", v);
+  else std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// "0.001 to 100 (metres)", "0 to 1".
+std::string range_text(const Range& r) {
+  std::string text = number_text(r.min) + " to " + number_text(r.max);
+  if (*r.unit != '\0') text += std::string(" (") + r.unit + ")";
+  return text;
+}
+
+// The value of `option` as a number within `r`; fails naming the option and
+// the range: "--abs-tol: 2147483648 is outside 0.001 to 100 (metres)".
+double parse_in_range(std::string_view option, const char* text, const Range& r) {
+  const std::string name(option);
+  char* end = nullptr;
+  const double value = std::strtod(text, &end);
+  const bool parsed = end != text && *end == '\0';
+  // Infinity, and what overflows a double (1e999), is a number out of range.
+  if (!parsed || std::isnan(value))
+    fail(name + ": not a number: '" + text + "'; expected " + range_text(r));
+  if (!(value >= r.min && value <= r.max)) fail(name + ": " + text + " is outside " + range_text(r));
+  if (r.whole && value != std::floor(value))
+    fail(name + ": not a whole number: '" + text + "'; expected " + range_text(r));
+  return value;
+}
+
+unsigned parse_count(std::string_view option, const char* text, const Range& r) {
+  return static_cast<unsigned>(parse_in_range(option, text, r));
+}
 
 Options parse(int argc, char** argv) {
   Options o;
@@ -112,39 +184,52 @@ Options parse(int argc, char** argv) {
          "--abs-tol", "--rel-tol", "--min-separation", "--min-separation-s", "--max-residual",
          "--association-radius", "--commit-after", "--min-observations", "--skip-rows",
          "--sequence-capacity", "--landmark-capacity", "--sweep"});
+    EngineConfig& e = o.engine;
     if (arg == "--markings") o.markings = v;
     else if (arg == "--poses") o.poses = v;
     else if (arg == "--out") o.out = v;
     else if (arg == "--jsonl") o.jsonl = v;
     else if (arg == "--truth") o.truth = v;
-    else if (arg == "--fps") o.fps = parse_number(arg, v);
-    else if (arg == "--truth-radius") o.truth_radius = parse_number(arg, v);
-    else if (arg == "--k") o.engine.chain.k = parse_whole(arg, v);
-    else if (arg == "--abs-tol") o.engine.match.distance_tolerance_abs_m = parse_number(arg, v);
-    else if (arg == "--rel-tol") o.engine.match.distance_tolerance_rel = parse_number(arg, v);
-    else if (arg == "--min-separation") o.engine.match.min_separation_m = parse_number(arg, v);
-    else if (arg == "--min-separation-s") o.engine.match.min_separation_s = parse_number(arg, v);
-    else if (arg == "--max-residual") o.engine.match.max_residual_m = parse_number(arg, v);
-    else if (arg == "--association-radius") o.engine.tracker.association_radius_m = parse_number(arg, v);
-    else if (arg == "--commit-after") o.engine.tracker.commit_after_s = parse_number(arg, v);
-    else if (arg == "--min-observations") o.engine.tracker.min_observations = parse_whole(arg, v);
-    else if (arg == "--skip-rows") o.engine.chain.max_skipped_rows = parse_whole(arg, v);
-    else if (arg == "--sequence-capacity") o.engine.database.sequence_capacity = parse_whole(arg, v);
-    else if (arg == "--landmark-capacity") o.engine.database.landmark_capacity = parse_whole(arg, v);
+    else if (arg == "--fps") o.fps = parse_in_range(arg, v, kFpsRange);
+    else if (arg == "--truth-radius") o.truth_radius = parse_in_range(arg, v, kTruthRadiusRange);
+    else if (arg == "--k") e.chain.k = parse_count(arg, v, kKRange);
+    else if (arg == "--abs-tol") e.match.distance_tolerance_abs_m = parse_in_range(arg, v, kAbsTolRange);
+    else if (arg == "--rel-tol") e.match.distance_tolerance_rel = parse_in_range(arg, v, kRelTolRange);
+    else if (arg == "--min-separation") e.match.min_separation_m = parse_in_range(arg, v, kMinSeparationRange);
+    else if (arg == "--min-separation-s") e.match.min_separation_s = parse_in_range(arg, v, kMinSeparationSRange);
+    else if (arg == "--max-residual") e.match.max_residual_m = parse_in_range(arg, v, kMaxResidualRange);
+    else if (arg == "--association-radius")
+      e.tracker.association_radius_m = parse_in_range(arg, v, kAssociationRadiusRange);
+    else if (arg == "--commit-after") e.tracker.commit_after_s = parse_in_range(arg, v, kCommitAfterRange);
+    else if (arg == "--min-observations") e.tracker.min_observations = parse_count(arg, v, kMinObservationsRange);
+    else if (arg == "--skip-rows") e.chain.max_skipped_rows = parse_count(arg, v, kSkipRowsRange);
+    else if (arg == "--sequence-capacity")
+      e.database.sequence_capacity = static_cast<std::size_t>(parse_in_range(arg, v, kCapacityRange));
+    else if (arg == "--landmark-capacity")
+      e.database.landmark_capacity = static_cast<std::size_t>(parse_in_range(arg, v, kCapacityRange));
     else if (arg == "--sweep") {
       const std::string text = v;
       const auto dots = text.find("..");
-      if (dots == std::string::npos) fail("--sweep: expected A..B, found '" + text + "'");
-      o.sweep_first = parse_whole(arg, text.substr(0, dots).c_str());
-      o.sweep_last = parse_whole(arg, text.substr(dots + 2).c_str());
-      if (o.sweep_first < 2 || o.sweep_last > kMaxSequenceLength || o.sweep_first > o.sweep_last)
-        fail("--sweep: expected 2 <= A <= B <= 10, found '" + text + "'");
+      const std::string expected = "--sweep: expected A..B with 2 <= A <= B <= " +
+                                   std::to_string(kMaxSequenceLength) + ", found '" + text + "'";
+      if (dots == std::string::npos) fail(expected);
+      const std::string first = text.substr(0, dots), last = text.substr(dots + 2);
+      const auto whole = [&](const std::string& part) {
+        char* end = nullptr;
+        const double value = std::strtod(part.c_str(), &end);
+        if (part.empty() || *end != '\0' || !(value >= 2 && value <= kMaxSequenceLength) ||
+            value != std::floor(value))
+          fail(expected);
+        return static_cast<unsigned>(value);
+      };
+      o.sweep_first = whole(first);
+      o.sweep_last = whole(last);
+      if (o.sweep_first > o.sweep_last) fail(expected);
     }
   }
   if (o.markings.empty()) fail("--markings FILE is required (see --help)");
-  if (!(o.fps > 0 && o.fps <= 1e6)) fail("--fps must be in (0, 1000000]");
-  if (!(o.truth_radius > 0 && o.truth_radius <= 10000)) fail("--truth-radius must be in (0, 10000] metres");
-  if (const char* problem = validate(o.engine)) fail(problem);
+  // The last check, of the whole configuration (each option was checked above).
+  if (const char* problem = validate(o.engine)) fail(std::string("engine settings: ") + problem);
   return o;
 }
 

@@ -19,7 +19,29 @@ check "not a number" 2 "nan.txt:2: record 1: y is not a finite number: 'x'" -- "
 printf '1\n0 1 1.5 10 A\n' >"$work/one.txt"
 printf '1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0\n' >"$work/poses.txt"
 check "short pose line" 2 "poses.txt:2: expected 12 numbers" -- "$replay" --markings "$work/one.txt" --poses "$work/poses.txt"
-check "bad k" 2 "k must be between 2 and 10" -- "$replay" --markings "$work/one.txt" --k 11
+check "bad k" 2 "^markloop-replay: --k: 11 is outside 2 to 10$" -- "$replay" --markings "$work/one.txt" --k 11
+# Every numeric option has a range, checked where it is parsed: the message
+# names the option and the range (absurd values were accepted, or refused by
+# the engine's validate() without naming the option).
+for h in "--abs-tol|-1|0.001 to 100 \(metres\)" "--abs-tol|2147483648|0.001 to 100 \(metres\)" \
+         "--abs-tol|18446744073709551616|0.001 to 100 \(metres\)" "--rel-tol|2147483648|0 to 0.1" \
+         "--rel-tol|18446744073709551616|0 to 0.1" "--association-radius|2147483648|0.01 to 100 \(metres\)" \
+         "--commit-after|18446744073709551616|0.01 to 100 \(seconds\)" "--max-residual|2147483648|0.001 to 100 \(metres\)" \
+         "--min-separation|18446744073709551616|0 to 10000 \(metres\)" "--min-separation-s|18446744073709551616|0 to 86400 \(seconds\)" \
+         "--min-observations|2147483648|1 to 1000" "--k|2147483648|2 to 10" "--skip-rows|2147483648|0 to 1" \
+         "--landmark-capacity|2147483648|16 to 1073741824" "--sequence-capacity|2147483648|16 to 1073741824" \
+         "--fps|0|0.001 to 1000000 \(Hz\)" "--truth-radius|1e999|0.01 to 10000 \(metres\)"; do
+  IFS='|' read -r option value range <<<"$h"
+  check "$option $value" 2 "^markloop-replay: $option: $value is outside $range$" -- "$replay" --markings "$work/one.txt" "$option" "$value"
+done
+check "not a number" 2 "^markloop-replay: --abs-tol: not a number: 'nan'; expected 0.001 to 100 \(metres\)$" -- \
+  "$replay" --markings "$work/one.txt" --abs-tol nan
+check "not a whole number" 2 "^markloop-replay: --min-observations: not a whole number: '2.5'; expected 1 to 1000$" -- \
+  "$replay" --markings "$work/one.txt" --min-observations 2.5
+check "ranges in --help" 0 "--abs-tol M +distance tolerance, absolute part, 0.001 to 100 m" -- "$replay" --help
+check "range ends accepted" 0 "^matches: 0" -- "$replay" --markings "$work/one.txt" --k 10 --abs-tol 100 --rel-tol 0 \
+  --min-separation 10000 --min-separation-s 86400 --max-residual 0.001 --association-radius 0.01 --commit-after 100 \
+  --min-observations 1000 --skip-rows 0 --landmark-capacity 16 --sequence-capacity 16
 check "bad sweep" 2 "--sweep: expected" -- "$replay" --markings "$work/one.txt" --sweep 5
 
 # Inputs: a directory, an endless device and poses that stop short are
@@ -51,7 +73,8 @@ check "label too long" 2 "long-label.txt:2: record 1: label is longer than 64 ch
 printf '2\n5 1 1.5 10 A\n1 1 1.5 12 A\n' >"$work/backwards.txt"
 check "frames out of order" 0 "backwards.txt:3: frame 1 after frame 5: the records are taken in frame order" -- \
   "$replay" --markings "$work/backwards.txt"
-check "frame rate out of range" 2 "--fps must be in \(0, 1000000\]" -- "$replay" --markings "$work/one.txt" --fps 2147483648
+check "frame rate out of range" 2 "^markloop-replay: --fps: 2147483648 is outside 0.001 to 1000000 \(Hz\)$" -- \
+  "$replay" --markings "$work/one.txt" --fps 2147483648
 
 printf '0\n' >"$work/empty.txt"
 check "empty input (engine)" 0 "^matches: 0" -- "$replay" --markings "$work/empty.txt"

@@ -431,6 +431,61 @@ TEST_CASE("malformed inputs are reported with file and line") {
   CHECK_THAT(error, StartsWith((dir / "c.log").string() + ":2:"));
 }
 
+TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told") {
+  const fs::path dir = fresh_dir("can-clock");
+  const std::string path = (dir / "c.log").string();
+  EcuCanLog log;
+  std::string error;
+  const DriveTimes drive{0.0, 79.9};
+
+  // Stamps on the wall clock: refused at the first line, with the drive's span.
+  fixture::write_text(path, "(1733130000.100000) vcan0 2B0#0011223344556677\n");
+  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  CHECK_THAT(error, StartsWith(path + ":1: stamp 1733130000.100000 s lies outside the drive (0.000 to 79.900 s"));
+  // ... but read without a drive to hold them against.
+  CHECK(read_ecu_can_log(path, log, error));
+  // Within the allowance either side of the drive.
+  fixture::write_text(path, "(0000000000.000000) vcan0 2B0#0011223344556677\n"
+                            "(0000000139.900000) vcan0 2B0#0011223344556677\n");
+  CHECK(read_ecu_can_log(path, log, error, &drive));
+  fixture::write_text(path, "(0000000000.000000) vcan0 2B0#0011223344556677\n"
+                            "(0000000140.000000) vcan0 2B0#0011223344556677\n");
+  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  CHECK_THAT(error, StartsWith(path + ":2: stamp 140.000000 s lies outside the drive"));
+
+  // Going back in time.
+  fixture::write_text(path, "(0000000002.000000) vcan0 2B0#0011223344556677\n"
+                            "(0000000002.000000) vcan0 2B0#0011223344556677\n"
+                            "(0000000001.999999) vcan0 2B0#0011223344556677\n");
+  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  CHECK_THAT(error, StartsWith(path + ":3: stamp 1.999999 s is before the line above's 2.000000 s"));
+
+  // A last line cut short (no newline, too few bytes on an ECU id) is an
+  // error; the same frame on a whole line is a frame of the wrong length.
+  fixture::write_text(path, "(0000000001.000000) vcan0 120#0011223344556677\n"
+                            "(0000000001.000000) vcan0 2A0#0011223344");
+  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  CHECK(error == path + ":2: the last line is cut short: no newline at its end, and its frame has 5 bytes "
+                        "where the ECU sends 8 (was the log cut?)");
+  fixture::write_text(path, "(0000000001.000000) vcan0 120#0011223344556677\n"
+                            "(0000000001.000000) vcan0 2A0#0011223344\n");
+  REQUIRE(read_ecu_can_log(path, log, error, &drive));
+  CHECK(log.loop_frames.wrong_length == 1);
+  CHECK(can_log_warnings(path, log) ==
+        std::vector<std::string>{path + ":2: 1 of 1 LoopDetection and Status frames have the wrong length (this one "
+                                        "5 bytes, the DBC's 8): rejected, counted under 'length'"});
+  // Another id's frame without a newline is no ECU frame to judge.
+  fixture::write_text(path, "(0000000001.000000) vcan0 120#0011");
+  REQUIRE(read_ecu_can_log(path, log, error, &drive));
+  CHECK(can_log_warnings(path, log) ==
+        std::vector<std::string>{path + ": no LoopDetection or Status frame: is this the ECU's log? (its one frame "
+                                        "is of another id)"});
+
+  // The fixture's own log: nothing to say.
+  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error, &drive));
+  CHECK(can_log_warnings(dir / "ecu-can.log", log).empty());
+}
+
 TEST_CASE("the picture is written as SVG and PNG") {
   const fs::path dir = fresh_dir("figure");
   std::vector<Pose2> route;
