@@ -334,8 +334,9 @@ bool write_json(const std::string& path, const Options& o, std::size_t frames, d
   std::fprintf(f, ",\"missed_stretches\":[");
   for (std::size_t i = 0; i < e.missed_stretches.size(); ++i) {
     const replay::MissedStretch& m = e.missed_stretches[i];
-    std::fprintf(f, "%s{\"from_m\":%zu,\"to_m\":%zu,\"frames\":[%zu,%zu],\"first_visit_frames\":[%zu,%zu]}",
-                 i > 0 ? "," : "", m.index * 100, (m.index + 1) * 100, m.first_frame, m.last_frame,
+    std::fprintf(f, "%s{\"from_m\":%llu,\"to_m\":%llu,\"frames\":[%zu,%zu],\"first_visit_frames\":[%zu,%zu]}",
+                 i > 0 ? "," : "", (unsigned long long)(m.index * 100), (unsigned long long)((m.index + 1) * 100),
+                 m.first_frame, m.last_frame,
                  m.first_visit_from, m.first_visit_to);
   }
   std::fprintf(f, "]");
@@ -543,8 +544,9 @@ int main(int argc, char** argv) {
               e.revisit_segments_detected, e.revisit_segments,
               percent_text(e.revisit_segments_detected, e.revisit_segments).c_str());
   for (const replay::MissedStretch& m : e.missed_stretches)
-    std::printf("    missed %zu..%zu m: frames %zu..%zu revisit frames %zu..%zu\n", m.index * 100,
-                (m.index + 1) * 100, m.first_frame, m.last_frame, m.first_visit_from, m.first_visit_to);
+    std::printf("    missed %llu..%llu m: frames %zu..%zu revisit frames %zu..%zu\n",
+                (unsigned long long)(m.index * 100), (unsigned long long)((m.index + 1) * 100), m.first_frame,
+                m.last_frame, m.first_visit_from, m.first_visit_to);
   if (e.pose_errors > 0) {
     std::printf("  %-34s %.3f m, %.2f deg\n", "relative pose error, mean", e.translation_error_mean_m,
                 e.rotation_error_mean_deg);

@@ -35,7 +35,7 @@ TruthJudge::TruthJudge(std::vector<Pose2> truth, double radius_m, double min_sep
   revisited_frame_.assign(truth_.size(), 0);
   segment_.resize(truth_.size());
   for (std::size_t i = 0; i < truth_.size(); ++i) {
-    segment_[i] = static_cast<std::size_t>(travelled[i] / kSegmentLength_m);
+    segment_[i] = static_cast<std::uint64_t>(travelled[i] / kSegmentLength_m);
     const std::int64_t cx = cell(truth_[i].x), cy = cell(truth_[i].y);
     for (std::int64_t dx = -1; dx <= 1 && !revisit_[i]; ++dx) {
       for (std::int64_t dy = -1; dy <= 1 && !revisit_[i]; ++dy) {
@@ -81,7 +81,7 @@ Evaluation TruthJudge::evaluate(const std::vector<FramePair>& pairs,
   Evaluation e;
   // The revisited stretches, by index, and their revisiting frames: as many
   // as there are frames at most, however long the stretches' indices run.
-  std::map<std::size_t, Stretch> revisited;
+  std::map<std::uint64_t, Stretch> revisited;
   for (std::size_t i = 0; i < truth_.size(); ++i) {
     if (!revisit_[i]) continue;
     const auto [it, first] = revisited.try_emplace(segment_[i]);
