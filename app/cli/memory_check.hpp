@@ -3,7 +3,9 @@
 // setting, never std::bad_alloc or the OOM killer.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <cstdio>
 #include <string>
 
@@ -18,8 +20,11 @@ namespace markloop::cli {
 inline std::string database_memory_error(const DatabaseConfig& config, unsigned k,
                                          const char* landmark_setting, const char* sequence_setting) {
   const std::uint64_t needed = SequenceDatabase::bytes_needed(config, k);
-  const std::uint64_t available = platform::available_memory_bytes();
-  if (available == 0 || needed <= available) return {};
+  // A 32-bit target cannot address more than half its pointer range in one go.
+  const std::uint64_t addressable = std::numeric_limits<std::size_t>::max() / 2;
+  const std::uint64_t memory = platform::available_memory_bytes();
+  const std::uint64_t available = memory == 0 ? addressable : std::min(memory, addressable);
+  if (needed <= available) return {};
   char text[512];
   std::snprintf(text, sizeof text,
                 "%s = %zu and %s = %zu (k = %u) need %.1f MiB for the database, more than the %.1f MiB "

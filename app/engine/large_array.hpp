@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdlib>
+#include <limits>
 #include <memory>
 #include <new>
 #include <type_traits>
@@ -23,6 +24,7 @@ class LargeArray {
   LargeArray() = default;
   explicit LargeArray(std::size_t size) : size_(size) {
     constexpr std::size_t kHugePage = std::size_t{2} << 20;
+    if (size > (std::numeric_limits<std::size_t>::max() - kHugePage) / sizeof(T)) throw std::bad_alloc();
     const std::size_t bytes = (size * sizeof(T) + kHugePage - 1) / kHugePage * kHugePage;
     void* memory = std::aligned_alloc(kHugePage, bytes == 0 ? kHugePage : bytes);
     if (memory == nullptr) throw std::bad_alloc();

@@ -84,10 +84,11 @@ SequenceDatabase::SequenceDatabase(const DatabaseConfig& config, const MatchConf
   slot_mask_ = static_cast<std::uint32_t>(slot_count - 1);
 }
 
-std::size_t SequenceDatabase::bytes_needed(const DatabaseConfig& config, unsigned k) {
-  const std::size_t landmarks = power_of_two_at_least(config.landmark_capacity);
-  const std::size_t sequences = power_of_two_at_least(config.sequence_capacity);
-  const std::size_t slots = power_of_two_at_least(2 * sequences);
+std::uint64_t SequenceDatabase::bytes_needed(const DatabaseConfig& config, unsigned k) {
+  const auto power_of_two = [](std::uint64_t n) { return std::bit_ceil(std::max<std::uint64_t>(n, 2)); };
+  const std::uint64_t landmarks = power_of_two(config.landmark_capacity);
+  const std::uint64_t sequences = power_of_two(config.sequence_capacity);
+  const std::uint64_t slots = power_of_two(2 * sequences);
   return landmarks * sizeof(Landmark) + sequences * (k * sizeof(LandmarkId) + 3 * sizeof(std::uint32_t)) +
          slots * sizeof(Slot);
 }

@@ -77,7 +77,8 @@ class SequenceDatabase {
 
   // Bytes the constructor allocates for `config` and `k`, so that a caller
   // can refuse a size the machine cannot hold before asking for it.
-  static std::size_t bytes_needed(const DatabaseConfig& config, unsigned k);
+  // In 64 bits: on a 32-bit target the product may exceed its address space.
+  static std::uint64_t bytes_needed(const DatabaseConfig& config, unsigned k);
 
   SequenceDatabase(const SequenceDatabase&) = delete;
   SequenceDatabase& operator=(const SequenceDatabase&) = delete;
