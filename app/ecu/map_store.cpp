@@ -283,8 +283,11 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
   std::size_t got = 0;
   if (auto ec = platform::read_full(fd, header.data(), header.size(), got))
     return reject("read error: " + describe(ec));
-  if (got < 8 || !std::equal(kMagic.begin(), kMagic.end(), header.begin()))
-    return reject("not a markloop map (wrong magic)");
+  // Another program's file named by mistake is left alone; a file too short
+  // to say what it is counts as damaged.
+  if (got < 8) return reject("not a markloop map (too short)");
+  if (!std::equal(kMagic.begin(), kMagic.end(), header.begin()))
+    return unusable("not a markloop map (wrong magic); the file is left as it is: check --map (map.file)");
   if (got < kMapHeaderBytes) return reject("truncated header (" + std::to_string(got) + " bytes)");
   if (get32(&header[60]) != crc32(std::span<const std::uint8_t>(header.data(), 60)))
     return reject("header checksum mismatch");

@@ -128,7 +128,8 @@ bool read_small_matrix(const cv::FileNode& node, int max_values, cv::Mat& m) {
   const int r = static_cast<int>(rows), c = static_cast<int>(cols);
   if (r < 1 || c < 1 || r > max_values || c > max_values || r * c > max_values) return false;
   node >> m;
-  return !m.empty();
+  // Whole-number types would round the principal point and the coefficients.
+  return !m.empty() && (m.depth() == CV_64F || m.depth() == CV_32F);
 }
 
 bool read_matrix(const cv::FileNode& node, int rows, int cols, double* out) {

@@ -1,6 +1,9 @@
 #include "perception/storage_file.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <string_view>
+#include <vector>
 
 #include "platform/files.hpp"
 
@@ -81,6 +84,32 @@ std::size_t first_line_too_deep(std::string_view text) {
   return 0;
 }
 
+// OpenCV keeps one of two equal keys without a word; a calibration that
+// names a setting twice is a mistake to report. YAML's top-level keys only
+// (a line beginning with a name and a colon). Returns the second line, 0
+// when no key repeats; `key` names it.
+std::size_t first_repeated_key(std::string_view text, std::string& key) {
+  std::vector<std::string_view> seen;
+  std::size_t line = 0;
+  for (std::size_t begin = 0; begin < text.size();) {
+    ++line;
+    std::size_t end = text.find('\n', begin);
+    if (end == std::string_view::npos) end = text.size();
+    const std::string_view row = text.substr(begin, end - begin);
+    begin = end + 1;
+    std::size_t n = 0;
+    while (n < row.size() && (std::isalnum(static_cast<unsigned char>(row[n])) != 0 || row[n] == '_')) ++n;
+    if (n == 0 || n >= row.size() || row[n] != ':') continue;
+    const std::string_view name = row.substr(0, n);
+    if (std::find(seen.begin(), seen.end(), name) != seen.end()) {
+      key = name;
+      return line;
+    }
+    seen.push_back(name);
+  }
+  return 0;
+}
+
 }  // namespace
 
 std::optional<cv::FileStorage> open_storage_file(const std::string& path, std::string& error) {
@@ -100,6 +129,11 @@ std::optional<cv::FileStorage> open_storage_file(const std::string& path, std::s
   if (const std::size_t line = first_line_too_deep(text); line != 0) {
     error = path + ":" + std::to_string(line) + ": nested more than " + std::to_string(kMaxStorageNesting) +
             " levels deep: not a calibration file";
+    return std::nullopt;
+  }
+  std::string key;
+  if (const std::size_t line = first_repeated_key(text, key); line != 0) {
+    error = path + ":" + std::to_string(line) + ": " + key + " is given twice";
     return std::nullopt;
   }
   cv::FileStorage fs(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
