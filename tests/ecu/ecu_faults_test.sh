@@ -136,8 +136,9 @@ check "summary to a directory" 1 "^markloop: $work: cannot write the summary: Is
 check "CAN output to /dev/full" 1 "^markloop: /dev/full: No space left on device" -- "${run[@]}" --can-out /dev/full
 
 # --- SIGTERM ends a run blocked on a stalled pipe, with the map saved ----------
-# limit_ms: 100 natively; an emulator (cross builds) adds its own start-up.
-limit_ms=100
+# limit_ms: 100 natively; an emulator (cross builds) or a sanitizer's exit
+# checks (MARKLOOP_STOP_LIMIT_MS, set by the build) add their own time.
+limit_ms=${MARKLOOP_STOP_LIMIT_MS:-100}
 [ ${#ecu[@]} -gt 1 ] && limit_ms=1000
 stalled() {  # stalled NAME INPUT_OPTION...: the pipe holds a little, then nothing
   local name=$1; shift
