@@ -669,14 +669,14 @@ def emit_header(db: Database, dbc_name: str, node: str) -> str:
     w("// Per message: a struct of physical values with its wire constants, encode()")
     w("// (rounds, saturates to [min|max], fills alive counter and CRC), and decode()")
     w("// (checks length, CRC, alive counter, ranges; writes `out` only on success).")
-    w("// No heap, no exceptions. E2E details: markloop/dbc/e2e.hpp.")
+    w("// No heap, no exceptions. E2E details: dbc/e2e.hpp.")
     w("#pragma once")
     w("")
     for inc in ("array", "chrono", "cstddef", "cstdint", "span", "string_view"):
         w(f"#include <{inc}>")
     w("")
     for inc in ("bits.hpp", "codec.hpp", "e2e.hpp", "receive.hpp"):
-        w(f'#include "markloop/dbc/{inc}"')
+        w(f'#include "dbc/{inc}"')
     w("")
     w("namespace markloop::dbc {")
     w("")

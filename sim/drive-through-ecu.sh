@@ -50,19 +50,19 @@ else
   name=$scenario
 fi
 [ -n "$out" ] || out=build/demo-ecu-${name%%.*}
-for tool in sim/markloop-sim app/ecu/markloop app/eval/markloop-eval; do
+for tool in bin/markloop-sim bin/markloop bin/markloop-eval; do
   [ -x "$bin/$tool" ] || die "$bin/$tool is missing: build first (cmake --build --preset host)"
 done
 
 mkdir -p "$out"
 echo "drive-through-ecu: simulating '$name' (seed $seed) into $out"
-"$bin/sim/markloop-sim" drive "${world[@]}" --seed "$seed" --out "$out" "${sim_extra[@]}"
+"$bin/bin/markloop-sim" drive "${world[@]}" --seed "$seed" --out "$out" "${sim_extra[@]}"
 echo "drive-through-ecu: markloop (file mode${realtime:+, real time})"
-"$bin/app/ecu/markloop" --camera-file "$out/frames.y4m" --can-in "$out/odometry.log" \
+"$bin/bin/markloop" --camera-file "$out/frames.y4m" --can-in "$out/odometry.log" \
   --calibration "$out/camera.yaml" --can-out "$out/ecu-can.log" \
   --detections-out "$out/ecu-detections.csv" --landmarks-out "$out/ecu-landmarks.csv" \
   --summary "$out/ecu-summary.json" \
   --set realtime.mlockall=false "${map_args[@]}" "${realtime[@]}"
 [ "$keep_frames" = 1 ] || rm -f "$out/frames.y4m"
 echo "drive-through-ecu: evaluation"
-"$bin/app/eval/markloop-eval" "$out" --json "$out/eval.json"
+"$bin/bin/markloop-eval" "$out" --json "$out/eval.json"

@@ -8,7 +8,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "engine/types.hpp"
+#include "app/engine/types.hpp"
 #include "sim/world.hpp"
 
 namespace markloop::sim {

@@ -11,12 +11,12 @@
 
 #include <linux/videodev2.h>
 
-#include "cli/tool_files.hpp"
+#include "app/tools/common/tool_files.hpp"
 #include "drivers/can/candump_log.hpp"
 #include "drivers/can/socketcan.hpp"
 #include "drivers/v4l2/v4l2_device.hpp"
 #include "drivers/v4l2/v4l2_output.hpp"
-#include "io/y4m.hpp"
+#include "app/io/y4m.hpp"
 
 namespace markloop::sim {
 

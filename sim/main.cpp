@@ -8,9 +8,9 @@
 #include <string>
 #include <string_view>
 
-#include "cli/cli.hpp"
-#include "cli/tool_files.hpp"
-#include "perception/camera_model.hpp"
+#include "app/common/cli.hpp"
+#include "app/tools/common/tool_files.hpp"
+#include "app/perception/camera_model.hpp"
 #include "sim/live.hpp"
 #include "sim/recorder.hpp"
 #include "sim/route.hpp"

@@ -10,11 +10,11 @@
 #include <random>
 #include <vector>
 
-#include "cli/tool_files.hpp"
+#include "app/tools/common/tool_files.hpp"
 #include "drivers/can/candump_log.hpp"
-#include "io/still_image.hpp"
-#include "io/y4m.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
+#include "app/tools/common/still_image.hpp"
+#include "app/io/y4m.hpp"
+#include "dbc/markloop_messages.hpp"
 #include "sim/noise.hpp"
 
 namespace markloop::sim {

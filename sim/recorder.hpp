@@ -8,7 +8,7 @@
 #include <optional>
 #include <string>
 
-#include "perception/camera_model.hpp"
+#include "app/perception/camera_model.hpp"
 #include "sim/drive.hpp"
 #include "sim/render.hpp"
 #include "sim/world.hpp"

@@ -21,7 +21,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "perception/camera_model.hpp"
+#include "app/perception/camera_model.hpp"
 #include "sim/noise.hpp"
 #include "sim/world.hpp"
 

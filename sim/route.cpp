@@ -7,7 +7,7 @@
 #include <string_view>
 #include <vector>
 
-#include "cli/tool_files.hpp"
+#include "app/tools/common/tool_files.hpp"
 
 namespace markloop::sim {
 

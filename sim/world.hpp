@@ -15,8 +15,8 @@
 #include <string_view>
 #include <vector>
 
-#include "engine/types.hpp"
-#include "perception/marking_classes.hpp"
+#include "app/engine/types.hpp"
+#include "app/perception/marking_classes.hpp"
 
 namespace markloop::sim {
 

@@ -1,4 +1,4 @@
-#include "ecu/config.hpp"
+#include "app/ecu/config.hpp"
 
 #include <algorithm>
 #include <cerrno>

@@ -8,8 +8,8 @@
 #include <string>
 #include <string_view>
 
-#include "engine/config.hpp"
-#include "engine/types.hpp"
+#include "app/engine/config.hpp"
+#include "app/engine/types.hpp"
 
 namespace markloop::ecu {
 

@@ -1,12 +1,12 @@
-#include "ecu/ecu.hpp"
+#include "app/ecu/ecu.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 
-#include "markloop/dbc/markloop_messages.hpp"
-#include "markloop/dbc/receive.hpp"
-#include "perception/marking_classes.hpp"
+#include "dbc/markloop_messages.hpp"
+#include "dbc/receive.hpp"
+#include "app/perception/marking_classes.hpp"
 
 namespace markloop::ecu {
 

@@ -19,15 +19,15 @@
 #include <opencv2/core/mat.hpp>
 
 #include "drivers/can/can_frame.hpp"
-#include "ecu/config.hpp"
-#include "ecu/map_store.hpp"
-#include "ecu/odometry.hpp"
-#include "ecu/timing.hpp"
-#include "engine/fixed_vector.hpp"
-#include "engine/sequence_engine.hpp"
-#include "markloop/dbc/e2e.hpp"
-#include "perception/camera_model.hpp"
-#include "perception/marking_detector.hpp"
+#include "app/ecu/config.hpp"
+#include "app/ecu/map_store.hpp"
+#include "app/ecu/odometry.hpp"
+#include "app/ecu/timing.hpp"
+#include "app/common/fixed_vector.hpp"
+#include "app/engine/sequence_engine.hpp"
+#include "dbc/e2e.hpp"
+#include "app/perception/camera_model.hpp"
+#include "app/perception/marking_detector.hpp"
 
 namespace markloop::ecu {
 

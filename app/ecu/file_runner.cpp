@@ -22,9 +22,9 @@
 #include <opencv2/core.hpp>
 
 #include "drivers/can/candump_log.hpp"
-#include "ecu/runner.hpp"
-#include "io/y4m.hpp"
-#include "perception/marking_classes.hpp"
+#include "app/ecu/runner.hpp"
+#include "app/io/y4m.hpp"
+#include "app/perception/marking_classes.hpp"
 #include "platform/files.hpp"
 #include "platform/os.hpp"
 

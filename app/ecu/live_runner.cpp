@@ -17,8 +17,8 @@
 #include "drivers/can/candump_log.hpp"
 #include "drivers/can/socketcan.hpp"
 #include "drivers/v4l2/v4l2_camera.hpp"
-#include "ecu/runner.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
+#include "app/ecu/runner.hpp"
+#include "dbc/markloop_messages.hpp"
 #include "platform/os.hpp"
 
 namespace markloop::ecu {

@@ -6,11 +6,11 @@
 #include <string_view>
 #include <utility>
 
-#include "cli/cli.hpp"
-#include "cli/memory_check.hpp"
-#include "cli/tool_files.hpp"
-#include "ecu/config.hpp"
-#include "ecu/runner.hpp"
+#include "app/common/cli.hpp"
+#include "app/common/memory_check.hpp"
+#include "app/tools/common/tool_files.hpp"
+#include "app/ecu/config.hpp"
+#include "app/ecu/runner.hpp"
 
 namespace {
 

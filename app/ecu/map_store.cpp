@@ -1,4 +1,4 @@
-#include "ecu/map_store.hpp"
+#include "app/ecu/map_store.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -12,7 +12,7 @@
 #include <ctime>
 #include <span>
 
-#include "ecu/crc32.hpp"
+#include "app/ecu/crc32.hpp"
 #include "platform/files.hpp"
 #include "platform/os.hpp"
 

@@ -37,8 +37,8 @@
 #include <string>
 #include <system_error>
 
-#include "engine/config.hpp"
-#include "engine/sequence_database.hpp"
+#include "app/engine/config.hpp"
+#include "app/engine/sequence_database.hpp"
 #include "platform/unique_fd.hpp"
 
 namespace markloop::ecu {

@@ -1,4 +1,4 @@
-#include "ecu/odometry.hpp"
+#include "app/ecu/odometry.hpp"
 
 #include <cmath>
 #include <numbers>

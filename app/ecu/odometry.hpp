@@ -8,9 +8,9 @@
 #include <cstdint>
 #include <span>
 
-#include "engine/types.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
-#include "markloop/dbc/receive.hpp"
+#include "app/engine/types.hpp"
+#include "dbc/markloop_messages.hpp"
+#include "dbc/receive.hpp"
 
 namespace markloop::ecu {
 

@@ -6,10 +6,10 @@
 
 #include <string>
 
-#include "ecu/config.hpp"
-#include "ecu/ecu.hpp"
-#include "perception/camera_model.hpp"
-#include "perception/marking_detector.hpp"
+#include "app/ecu/config.hpp"
+#include "app/ecu/ecu.hpp"
+#include "app/perception/camera_model.hpp"
+#include "app/perception/marking_detector.hpp"
 #include "platform/os.hpp"
 #include "platform/unique_fd.hpp"
 

@@ -6,7 +6,7 @@
 #include <iterator>
 #include <utility>
 
-#include "ecu/runner.hpp"
+#include "app/ecu/runner.hpp"
 #include "platform/files.hpp"
 #include "platform/os.hpp"
 

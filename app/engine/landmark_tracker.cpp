@@ -1,4 +1,4 @@
-#include "engine/landmark_tracker.hpp"
+#include "app/engine/landmark_tracker.hpp"
 
 #include <cmath>
 

@@ -11,9 +11,9 @@
 #include <cstdint>
 #include <span>
 
-#include "engine/config.hpp"
-#include "engine/fixed_vector.hpp"
-#include "engine/types.hpp"
+#include "app/engine/config.hpp"
+#include "app/common/fixed_vector.hpp"
+#include "app/engine/types.hpp"
 
 namespace markloop {
 

@@ -1,4 +1,4 @@
-#include "engine/rigid_alignment.hpp"
+#include "app/engine/rigid_alignment.hpp"
 
 #include <cassert>
 #include <cmath>

@@ -5,7 +5,7 @@
 
 #include <Eigen/Core>
 
-#include "engine/types.hpp"
+#include "app/engine/types.hpp"
 
 namespace markloop {
 

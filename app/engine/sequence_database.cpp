@@ -1,4 +1,4 @@
-#include "engine/sequence_database.hpp"
+#include "app/engine/sequence_database.hpp"
 
 #include <algorithm>
 #include <bit>

@@ -14,9 +14,9 @@
 #include <cstdint>
 #include <span>
 
-#include "engine/config.hpp"
-#include "engine/large_array.hpp"
-#include "engine/types.hpp"
+#include "app/engine/config.hpp"
+#include "app/common/large_array.hpp"
+#include "app/engine/types.hpp"
 
 namespace markloop {
 

@@ -1,4 +1,4 @@
-#include "engine/sequence_engine.hpp"
+#include "app/engine/sequence_engine.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 
 #include <Eigen/Core>
 
-#include "engine/rigid_alignment.hpp"
+#include "app/engine/rigid_alignment.hpp"
 
 namespace markloop {
 namespace {

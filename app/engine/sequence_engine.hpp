@@ -14,11 +14,11 @@
 #include <cstdint>
 #include <span>
 
-#include "engine/config.hpp"
-#include "engine/fixed_vector.hpp"
-#include "engine/landmark_tracker.hpp"
-#include "engine/sequence_database.hpp"
-#include "engine/types.hpp"
+#include "app/engine/config.hpp"
+#include "app/common/fixed_vector.hpp"
+#include "app/engine/landmark_tracker.hpp"
+#include "app/engine/sequence_database.hpp"
+#include "app/engine/types.hpp"
 
 #include <Eigen/Core>
 

@@ -1,4 +1,4 @@
-#include "engine/types.hpp"
+#include "app/engine/types.hpp"
 
 #include <cmath>
 #include <numbers>

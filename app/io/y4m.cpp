@@ -1,4 +1,4 @@
-#include "io/y4m.hpp"
+#include "app/io/y4m.hpp"
 
 #include <cerrno>
 #include <charconv>

@@ -1,4 +1,4 @@
-#include "perception/birdseye.hpp"
+#include "app/perception/birdseye.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -14,7 +14,7 @@
 
 #include <opencv2/core/mat.hpp>
 
-#include "perception/camera_model.hpp"
+#include "app/perception/camera_model.hpp"
 
 namespace markloop::perception {
 

@@ -1,4 +1,4 @@
-#include "perception/camera_model.hpp"
+#include "app/perception/camera_model.hpp"
 
 #include <cmath>
 #include <exception>
@@ -7,7 +7,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/core/persistence.hpp>
 
-#include "perception/storage_file.hpp"
+#include "app/perception/storage_file.hpp"
 
 namespace markloop::perception {
 namespace {

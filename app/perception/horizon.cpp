@@ -1,4 +1,4 @@
-#include "perception/horizon.hpp"
+#include "app/perception/horizon.hpp"
 
 #include <algorithm>
 #include <bitset>

@@ -11,7 +11,7 @@
 #include <optional>
 #include <string_view>
 
-#include "engine/types.hpp"
+#include "app/engine/types.hpp"
 
 namespace markloop::perception {
 

@@ -1,4 +1,4 @@
-#include "perception/marking_classifier.hpp"
+#include "app/perception/marking_classifier.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -14,8 +14,8 @@
 #include <cstdint>
 #include <span>
 
-#include "perception/marking_classes.hpp"
-#include "perception/marking_features.hpp"
+#include "app/perception/marking_classes.hpp"
+#include "app/perception/marking_features.hpp"
 
 namespace markloop::perception {
 

@@ -1,4 +1,4 @@
-#include "perception/marking_detector.hpp"
+#include "app/perception/marking_detector.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,8 +9,8 @@
 #include <opencv2/core/persistence.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "perception/marking_classifier.hpp"
-#include "perception/storage_file.hpp"
+#include "app/perception/marking_classifier.hpp"
+#include "app/perception/storage_file.hpp"
 
 namespace markloop::perception {
 namespace {

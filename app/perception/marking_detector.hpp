@@ -26,12 +26,12 @@
 
 #include <opencv2/core/mat.hpp>
 
-#include "engine/types.hpp"
-#include "perception/birdseye.hpp"
-#include "perception/camera_model.hpp"
-#include "perception/horizon.hpp"
-#include "perception/marking_classifier.hpp"
-#include "perception/marking_features.hpp"
+#include "app/engine/types.hpp"
+#include "app/perception/birdseye.hpp"
+#include "app/perception/camera_model.hpp"
+#include "app/perception/horizon.hpp"
+#include "app/perception/marking_classifier.hpp"
+#include "app/perception/marking_features.hpp"
 
 namespace markloop::perception {
 

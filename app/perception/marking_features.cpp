@@ -1,4 +1,4 @@
-#include "perception/marking_features.hpp"
+#include "app/perception/marking_features.hpp"
 
 #include <algorithm>
 #include <cmath>

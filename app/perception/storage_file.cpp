@@ -1,4 +1,4 @@
-#include "perception/storage_file.hpp"
+#include "app/perception/storage_file.hpp"
 
 #include <algorithm>
 #include <cctype>

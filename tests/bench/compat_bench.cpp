@@ -11,7 +11,7 @@
 #include <string_view>
 #include <vector>
 
-#include "replay/compat.hpp"
+#include "app/tools/replay/compat.hpp"
 
 namespace {
 

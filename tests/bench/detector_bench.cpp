@@ -20,11 +20,11 @@
 #include <string_view>
 #include <vector>
 
-#include "cli/cli.hpp"
-#include "io/y4m.hpp"
-#include "perception/camera_model.hpp"
-#include "perception/marking_detector.hpp"
-#include "../perception/synthetic_road.hpp"
+#include "app/common/cli.hpp"
+#include "app/io/y4m.hpp"
+#include "app/perception/camera_model.hpp"
+#include "app/perception/marking_detector.hpp"
+#include "tests/perception/synthetic_road.hpp"
 
 namespace {
 

@@ -13,8 +13,8 @@
 
 #include <Eigen/Core>
 
-#include "engine/rigid_alignment.hpp"
-#include "engine/sequence_database.hpp"
+#include "app/engine/rigid_alignment.hpp"
+#include "app/engine/sequence_database.hpp"
 
 namespace {
 

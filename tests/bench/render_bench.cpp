@@ -5,7 +5,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "perception/camera_model.hpp"
+#include "app/perception/camera_model.hpp"
 #include "sim/render.hpp"
 #include "sim/world.hpp"
 

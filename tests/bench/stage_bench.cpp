@@ -9,10 +9,10 @@
 
 #include <Eigen/Core>
 
-#include "engine/landmark_tracker.hpp"
-#include "engine/rigid_alignment.hpp"
-#include "engine/sequence_database.hpp"
-#include "engine/sequence_engine.hpp"
+#include "app/engine/landmark_tracker.hpp"
+#include "app/engine/rigid_alignment.hpp"
+#include "app/engine/sequence_database.hpp"
+#include "app/engine/sequence_engine.hpp"
 #include "sim/drive.hpp"
 #include "sim/world.hpp"
 

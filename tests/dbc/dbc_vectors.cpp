@@ -10,7 +10,7 @@
 #include <string_view>
 #include <utility>
 
-#include "markloop/dbc/markloop_messages.hpp"
+#include "dbc/markloop_messages.hpp"
 
 using namespace markloop::dbc;
 

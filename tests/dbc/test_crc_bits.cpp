@@ -6,9 +6,9 @@
 
 #include <catch2/catch_test_macros.hpp>
 
-#include "markloop/dbc/bits.hpp"
-#include "markloop/dbc/crc8.hpp"
-#include "markloop/dbc/e2e.hpp"
+#include "dbc/bits.hpp"
+#include "dbc/crc8.hpp"
+#include "dbc/e2e.hpp"
 
 using namespace markloop::dbc;
 

@@ -9,7 +9,7 @@
 #include <catch2/catch_approx.hpp>
 #include <catch2/catch_test_macros.hpp>
 
-#include "markloop/dbc/markloop_messages.hpp"
+#include "dbc/markloop_messages.hpp"
 
 using namespace markloop::dbc;
 using Bytes = std::array<std::uint8_t, 8>;

@@ -7,8 +7,8 @@
 
 #include <catch2/catch_test_macros.hpp>
 
-#include "markloop/dbc/loop_detection_assembler.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
+#include "dbc/loop_detection_assembler.hpp"
+#include "dbc/markloop_messages.hpp"
 
 using namespace markloop::dbc;
 using namespace std::chrono_literals;

@@ -12,10 +12,10 @@
 #include <system_error>
 
 #include "drivers/can/can_frame.hpp"
-#include "ecu/ecu.hpp"
-#include "markloop/dbc/loop_detection_assembler.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
-#include "perception/marking_detector.hpp"
+#include "app/ecu/ecu.hpp"
+#include "dbc/loop_detection_assembler.hpp"
+#include "dbc/markloop_messages.hpp"
+#include "app/perception/marking_detector.hpp"
 
 namespace markloop::ecu::testing {
 

@@ -7,7 +7,7 @@
 #include <fstream>
 #include <string>
 
-#include "ecu/config.hpp"
+#include "app/ecu/config.hpp"
 
 using markloop::ecu::EcuConfig;
 using markloop::ecu::load_config_file;

@@ -5,10 +5,10 @@
 #include <filesystem>
 #include <fstream>
 
-#include "ecu/ecu.hpp"
-#include "ecu_test_support.hpp"
-#include "perception/camera_model.hpp"
-#include "../perception/synthetic_road.hpp"
+#include "app/ecu/ecu.hpp"
+#include "tests/ecu/ecu_test_support.hpp"
+#include "app/perception/camera_model.hpp"
+#include "tests/perception/synthetic_road.hpp"
 
 using namespace markloop;
 using namespace markloop::ecu;

@@ -19,13 +19,13 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "ecu/ecu.hpp"
-#include "ecu_test_support.hpp"
-#include "perception/camera_model.hpp"
+#include "app/ecu/ecu.hpp"
+#include "tests/ecu/ecu_test_support.hpp"
+#include "app/perception/camera_model.hpp"
 #include "platform/os.hpp"
 
 #define MARKLOOP_COUNT_C_ALLOCATIONS 1
-#include "support/count_allocations.hpp"
+#include "tests/support/count_allocations.hpp"
 
 using namespace markloop;
 using namespace markloop::ecu;

@@ -7,8 +7,8 @@
 #include <memory>
 #include <vector>
 
-#include "ecu/map_store.hpp"
-#include "engine/sequence_engine.hpp"
+#include "app/ecu/map_store.hpp"
+#include "app/engine/sequence_engine.hpp"
 
 using namespace markloop;
 

@@ -14,9 +14,9 @@
 #include <random>
 #include <vector>
 
-#include "ecu/crc32.hpp"
-#include "ecu/map_store.hpp"
-#include "engine/sequence_database.hpp"
+#include "app/ecu/crc32.hpp"
+#include "app/ecu/map_store.hpp"
+#include "app/engine/sequence_database.hpp"
 
 using namespace markloop;
 using Catch::Matchers::ContainsSubstring;

@@ -3,7 +3,7 @@
 
 #include <cstdlib>
 
-#include "notify_listener.hpp"
+#include "tests/ecu/notify_listener.hpp"
 #include "platform/os.hpp"
 
 using markloop::ecu::testing::NotifyListener;

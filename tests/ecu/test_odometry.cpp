@@ -7,8 +7,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "ecu/odometry.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
+#include "app/ecu/odometry.hpp"
+#include "dbc/markloop_messages.hpp"
 
 using namespace markloop;
 using namespace std::chrono_literals;

@@ -14,12 +14,12 @@
 #include <vector>
 
 #include "drivers/can/candump_log.hpp"
-#include "ecu/config.hpp"
-#include "ecu/map_store.hpp"
-#include "ecu_test_support.hpp"
-#include "io/y4m.hpp"
-#include "notify_listener.hpp"
-#include "perception/camera_model.hpp"
+#include "app/ecu/config.hpp"
+#include "app/ecu/map_store.hpp"
+#include "tests/ecu/ecu_test_support.hpp"
+#include "app/io/y4m.hpp"
+#include "tests/ecu/notify_listener.hpp"
+#include "app/perception/camera_model.hpp"
 
 using namespace markloop;
 using namespace std::chrono_literals;

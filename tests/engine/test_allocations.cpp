@@ -4,10 +4,10 @@
 
 #include <memory>
 
-#include "engine/sequence_engine.hpp"
+#include "app/engine/sequence_engine.hpp"
 #include "sim/drive.hpp"
 #include "sim/world.hpp"
-#include "support/count_allocations.hpp"
+#include "tests/support/count_allocations.hpp"
 
 using namespace markloop;
 using markloop::test::AllocationCounter;

@@ -5,7 +5,7 @@
 #include <limits>
 #include <vector>
 
-#include "replay/compat.hpp"
+#include "app/tools/replay/compat.hpp"
 
 using namespace markloop::replay;
 

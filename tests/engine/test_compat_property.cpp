@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "replay/compat.hpp"
+#include "app/tools/replay/compat.hpp"
 
 using namespace markloop::replay;
 

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <vector>
 
-#include "engine/landmark_tracker.hpp"
+#include "app/engine/landmark_tracker.hpp"
 
 using namespace markloop;
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "replay/paper_format.hpp"
+#include "app/tools/replay/paper_format.hpp"
 
 using namespace markloop::replay;
 using Catch::Matchers::ContainsSubstring;

@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
-#include "cli/tool_files.hpp"
-#include "replay/paper_format.hpp"
-#include "replay/replay.hpp"
-#include "replay/truth_judge.hpp"
+#include "app/tools/common/tool_files.hpp"
+#include "app/tools/replay/paper_format.hpp"
+#include "app/tools/replay/replay.hpp"
+#include "app/tools/replay/truth_judge.hpp"
 #include "sim/drive.hpp"
 #include "sim/world.hpp"
 

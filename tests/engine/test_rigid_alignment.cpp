@@ -4,7 +4,7 @@
 #include <array>
 #include <cmath>
 
-#include "engine/rigid_alignment.hpp"
+#include "app/engine/rigid_alignment.hpp"
 
 using namespace markloop;
 using Catch::Approx;

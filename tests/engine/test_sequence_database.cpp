@@ -5,7 +5,7 @@
 #include <set>
 #include <vector>
 
-#include "engine/sequence_database.hpp"
+#include "app/engine/sequence_database.hpp"
 
 using namespace markloop;
 

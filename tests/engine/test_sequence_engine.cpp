@@ -5,8 +5,8 @@
 #include <utility>
 #include <vector>
 
-#include "engine/sequence_engine.hpp"
-#include "replay/replay.hpp"
+#include "app/engine/sequence_engine.hpp"
+#include "app/tools/replay/replay.hpp"
 #include "sim/drive.hpp"
 #include "sim/world.hpp"
 

@@ -24,7 +24,7 @@
 #include <string>
 
 #include "drivers/can/candump_log.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
+#include "dbc/markloop_messages.hpp"
 
 namespace markloop::eval::fixture {
 

@@ -1,7 +1,7 @@
 // Writes the synthetic run of eval_fixture.hpp into DIR, for the CLI test.
 #include <cstdio>
 
-#include "eval_fixture.hpp"
+#include "tests/eval/eval_fixture.hpp"
 
 int main(int argc, char** argv) {
   if (argc != 2) {

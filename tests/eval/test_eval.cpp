@@ -11,14 +11,14 @@
 #include <string>
 #include <vector>
 
-#include "eval/can_log.hpp"
-#include "eval/figure.hpp"
-#include "eval/inputs.hpp"
-#include "eval/scoring.hpp"
-#include "eval_fixture.hpp"
-#include "perception/marking_classes.hpp"
-#include "replay/paper_format.hpp"
-#include "replay/truth_judge.hpp"
+#include "app/tools/eval/can_log.hpp"
+#include "app/tools/eval/figure.hpp"
+#include "app/tools/eval/inputs.hpp"
+#include "app/tools/eval/scoring.hpp"
+#include "tests/eval/eval_fixture.hpp"
+#include "app/perception/marking_classes.hpp"
+#include "app/tools/replay/paper_format.hpp"
+#include "app/tools/replay/truth_judge.hpp"
 
 namespace fs = std::filesystem;
 using namespace markloop;

@@ -9,9 +9,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "fuzz_input.hpp"
-#include "perception/camera_model.hpp"
-#include "perception/marking_detector.hpp"
+#include "tests/fuzz/fuzz_input.hpp"
+#include "app/perception/camera_model.hpp"
+#include "app/perception/marking_detector.hpp"
 
 using namespace markloop::perception;
 

@@ -6,8 +6,8 @@
 #include <cstdlib>
 #include <string>
 
-#include "ecu/config.hpp"
-#include "fuzz_input.hpp"
+#include "app/ecu/config.hpp"
+#include "tests/fuzz/fuzz_input.hpp"
 
 using markloop::ecu::EcuConfig;
 

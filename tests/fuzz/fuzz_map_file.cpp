@@ -5,9 +5,9 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "ecu/map_store.hpp"
-#include "engine/sequence_database.hpp"
-#include "fuzz_input.hpp"
+#include "app/ecu/map_store.hpp"
+#include "app/engine/sequence_database.hpp"
+#include "tests/fuzz/fuzz_input.hpp"
 
 using namespace markloop;
 

@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "eval/can_log.hpp"
-#include "fuzz_input.hpp"
-#include "replay/paper_format.hpp"
+#include "app/tools/eval/can_log.hpp"
+#include "tests/fuzz/fuzz_input.hpp"
+#include "app/tools/replay/paper_format.hpp"
 
 using namespace markloop;
 

@@ -19,7 +19,7 @@ targets=("$@")
 command -v clang++ >/dev/null || { echo "run-fuzzers: clang++ not found (apt install clang)" >&2; exit 1; }
 cmake --preset fuzz >/dev/null
 cmake --build --preset fuzz
-bin_dir=build/fuzz/tests/fuzz
+bin_dir=build/fuzz/bin
 # Each target's build writes NAME.seeds (the project's own files of its kind)
 # and NAME.max_len (tests/fuzz/CMakeLists.txt, the one list of targets).
 if [ "${#targets[@]}" -eq 0 ]; then

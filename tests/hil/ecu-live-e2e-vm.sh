@@ -35,7 +35,7 @@ ip link show vcan0 >/dev/null
 # at normal priority, so that it does not starve the player of the VM's CPUs.
 candump -L vcan0 >"$out/candump.log" 2>"$out/candump.err" &
 candump_pid=$!
-"$bin/app/ecu/markloop" --camera-device "$capture" --set camera.input=3 --set camera.fps=0 \
+"$bin/bin/markloop" --camera-device "$capture" --set camera.input=3 --set camera.fps=0 \
   --can-interface vcan0 --calibration "$camera" --map "$scratch/map.bin" \
   --can-out "$out/ecu-can.log" --summary "$out/ecu-summary.json" \
   --set realtime.priority=0 --set camera.max_rate=10 --set odometry.timeout_ms=500 \
@@ -46,7 +46,7 @@ kill -0 "$ecu_pid" || { say "markloop exited early"; cat "$out/markloop.err"; ex
 
 start=$(date +%s)
 sim_status=0
-"$bin/sim/markloop-sim" live --from "$drive" --video "$output" --output 1 --can vcan0 \
+"$bin/bin/markloop-sim" live --from "$drive" --video "$output" --output 1 --can vcan0 \
   >"$out/sim-live.out" 2>"$out/sim-live.err" || sim_status=$?
 say "drive played in $(($(date +%s) - start)) s (exit status $sim_status): $(tail -1 "$out/sim-live.out")"
 sleep 2
@@ -61,5 +61,5 @@ say "markloop exit status $ecu_status after SIGTERM"
 [ -s "$scratch/map.bin" ] || { say "map not saved"; exit 1; }
 say "map saved: $(stat -c %s "$scratch/map.bin") bytes"
 # The witness: complete, E2E-valid detections and Status on the bus.
-"$bin/tests/hil/markloop-hil-can-check" "$out/candump.log" --min-detections 1 --min-status 30 \
+"$bin/bin/markloop-hil-can-check" "$out/candump.log" --min-detections 1 --min-status 30 \
   | tee -a "$out/summary.txt"

@@ -27,7 +27,7 @@ while [ $# -gt 0 ]; do
     *) echo "ecu-live-e2e: unknown option $1" >&2; exit 2 ;;
   esac
 done
-for tool in sim/markloop-sim app/ecu/markloop tests/hil/markloop-hil-can-check; do
+for tool in bin/markloop-sim bin/markloop bin/markloop-hil-can-check; do
   [ -x "$bin/$tool" ] || { echo "ecu-live-e2e: $bin/$tool missing (build first)" >&2; exit 1; }
 done
 # The VM runs the host's own v4l2-ctl to set vivid up.
@@ -43,7 +43,7 @@ if [ ! -s "$drive/frames.y4m" ] || [ "$(cat "$drive/.args" 2>/dev/null)" != "$sc
   echo "ecu-live-e2e: rendering $frames frames of '$scenario' for the HIL camera"
   limit=()
   [ "$frames" = 0 ] || limit=(--max-frames "$frames")
-  "$bin/sim/markloop-sim" drive --scenario "$scenario" --seed 1 --camera "$camera" \
+  "$bin/bin/markloop-sim" drive --scenario "$scenario" --seed 1 --camera "$camera" \
     "${limit[@]}" --out "$drive" >/dev/null
   echo "$scenario $frames" >"$drive/.args"
 fi

@@ -10,8 +10,8 @@
 #include <string_view>
 
 #include "drivers/can/candump_log.hpp"
-#include "markloop/dbc/loop_detection_assembler.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
+#include "dbc/loop_detection_assembler.hpp"
+#include "dbc/markloop_messages.hpp"
 
 using namespace markloop;
 

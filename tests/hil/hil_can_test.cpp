@@ -18,8 +18,8 @@
 #include <random>
 #include <thread>
 
-#include "hil_test_support.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
+#include "tests/hil/hil_test_support.hpp"
+#include "dbc/markloop_messages.hpp"
 
 using namespace markloop;
 using namespace markloop::hil;

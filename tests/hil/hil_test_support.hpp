@@ -18,7 +18,7 @@
 
 #include "drivers/can/candump_log.hpp"
 #include "drivers/can/socketcan.hpp"
-#include "markloop/dbc/receive.hpp"
+#include "dbc/receive.hpp"
 
 extern char** environ;
 

@@ -25,7 +25,7 @@
 
 #include "drivers/v4l2/v4l2_camera.hpp"
 #include "drivers/v4l2/v4l2_output.hpp"
-#include "support/count_allocations.hpp"
+#include "tests/support/count_allocations.hpp"
 
 using namespace markloop::v4l2;
 using namespace std::chrono_literals;

@@ -4,8 +4,8 @@
 #   bash tests/hostile/run.sh --bin build/host [--out DIR] [--filter REGEX] [--jobs N]
 #                             [--timeout S] [--mem-mb N] [--keep] [--list]
 #
-#   --bin DIR       build tree holding app/ecu/markloop, app/replay/markloop-replay,
-#                   app/eval/markloop-eval, app/detect/markloop-detect, sim/markloop-sim
+#   --bin DIR       build tree holding bin/markloop, bin/markloop-replay,
+#                   bin/markloop-eval, bin/markloop-detect, bin/markloop-sim
 #   --out DIR       scratch, fixtures, logs and results; default build/hostile
 #   --filter REGEX  run only the cases whose name matches (grep -E)
 #   --jobs N        cases run in parallel; default 2
@@ -52,8 +52,8 @@ done
 [[ "$case_timeout" =~ ^[1-9][0-9]*$ ]] || die "--timeout wants whole seconds, got '$case_timeout'"
 [[ "$mem_mb" =~ ^[1-9][0-9]*$ ]] || die "--mem-mb wants a positive whole number, got '$mem_mb'"
 bin=$(cd "$bin" 2>/dev/null && pwd) || die "--bin: no such directory"
-for tool in app/ecu/markloop app/replay/markloop-replay app/eval/markloop-eval \
-            app/detect/markloop-detect sim/markloop-sim; do
+for tool in bin/markloop bin/markloop-replay bin/markloop-eval \
+            bin/markloop-detect bin/markloop-sim; do
   [ -x "$bin/$tool" ] || die "$bin/$tool is missing: build first (cmake --build --preset host)"
 done
 for tool in timeout setpriv mkfifo mknod sha256sum stat xargs; do
@@ -66,8 +66,8 @@ chmod 755 "$out"
 export OUT=$out H=$here PY KEEP=$keep CASE_TIMEOUT=$case_timeout
 export MEM_KB=$((mem_mb * 1024)) FSIZE_KB=$((64 * 1024))
 export STOP_MS=100 STOP_SLACK_MS=300 STOP_LIMIT_S=3
-export ECU=$bin/app/ecu/markloop REPLAY=$bin/app/replay/markloop-replay EVAL=$bin/app/eval/markloop-eval
-export DETECT=$bin/app/detect/markloop-detect SIM=$bin/sim/markloop-sim
+export ECU=$bin/bin/markloop REPLAY=$bin/bin/markloop-replay EVAL=$bin/bin/markloop-eval
+export DETECT=$bin/bin/markloop-detect SIM=$bin/bin/markloop-sim
 export F=$out/fixtures
 # What the ECU cases share: no real-time scheduling or locked memory (this
 # runs as root), and file mode on the small (10 frames) or full drive.

@@ -11,7 +11,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "perception/camera_model.hpp"
+#include "app/perception/camera_model.hpp"
 
 namespace markloop::perception::testing {
 

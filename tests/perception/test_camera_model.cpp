@@ -7,9 +7,9 @@
 #include <catch2/catch_approx.hpp>
 #include <catch2/catch_test_macros.hpp>
 
-#include "perception/camera_model.hpp"
-#include "perception/marking_detector.hpp"
-#include "perception/storage_file.hpp"
+#include "app/perception/camera_model.hpp"
+#include "app/perception/marking_detector.hpp"
+#include "app/perception/storage_file.hpp"
 
 using namespace markloop::perception;
 using Catch::Approx;

@@ -7,12 +7,12 @@
 
 #include <catch2/catch_test_macros.hpp>
 
-#include "perception/marking_detector.hpp"
-#include "synthetic_road.hpp"
+#include "app/perception/marking_detector.hpp"
+#include "tests/perception/synthetic_road.hpp"
 
 // The C functions too, except under AddressSanitizer (it owns malloc).
 #define MARKLOOP_COUNT_C_ALLOCATIONS 1
-#include "support/count_allocations.hpp"
+#include "tests/support/count_allocations.hpp"
 
 using namespace markloop::perception;
 using markloop::perception::testing::clutter_frame;

@@ -7,7 +7,7 @@
 #include <catch2/catch_approx.hpp>
 #include <catch2/catch_test_macros.hpp>
 
-#include "perception/marking_classifier.hpp"
+#include "app/perception/marking_classifier.hpp"
 
 using namespace markloop::perception;
 

@@ -11,10 +11,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/core/persistence.hpp>
 
-#include "perception/marking_classes.hpp"
-#include "perception/marking_classifier.hpp"
-#include "perception/marking_detector.hpp"
-#include "synthetic_road.hpp"
+#include "app/perception/marking_classes.hpp"
+#include "app/perception/marking_classifier.hpp"
+#include "app/perception/marking_detector.hpp"
+#include "tests/perception/synthetic_road.hpp"
 
 using namespace markloop::perception;
 using markloop::perception::testing::clutter_frame;

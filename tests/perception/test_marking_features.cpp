@@ -5,7 +5,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "perception/marking_features.hpp"
+#include "app/perception/marking_features.hpp"
 
 using namespace markloop::perception;
 

@@ -10,7 +10,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "io/still_image.hpp"
+#include "app/tools/common/still_image.hpp"
 
 using markloop::io::check_still;
 using markloop::io::declared_still_size;

@@ -8,7 +8,7 @@
 
 #include <catch2/catch_test_macros.hpp>
 
-#include "io/y4m.hpp"
+#include "app/io/y4m.hpp"
 
 using namespace markloop::io;
 

@@ -16,7 +16,7 @@ check "evaluate trains nothing" 2 "trains nothing" -- "$train" --evaluate-builti
 check "unknown option" 2 "unknown option --frobnicate" -- "$train" --frobnicate 1
 check "no value" 2 "^markloop-train: --real needs a value" -- "$train" --real
 check "missing set" 2 "$work/none" -- "$train" --evaluate-builtin --sim-test "$work/none"
-scripts="$(dirname "$0")/../../app/perception/train"
+scripts="$(dirname "$0")/../../app/tools/train"
 check "train-model.sh help" 0 "Regenerates the marking classifier" -- sh "$scripts/train-model.sh" --help
 check "train-model.sh no real images" 2 "$work/none/annotations.csv: no such file" -- \
   sh "$scripts/train-model.sh" "$work/none"

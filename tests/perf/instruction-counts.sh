@@ -32,8 +32,8 @@ default_few=$few default_many=$many
 # stage name | program (relative to a build tree) | arguments before the frame
 # count | FEW | MANY (empty: --few/--many)
 stages=(
-  "engine (sequence engine, ring drive)|tests/perf/markloop-pipeline-frames|--stage engine --frames|2000|12000"
-  "perception (marking detector, 1280x512 grey)|tests/perf/markloop-pipeline-frames|--stage perception --frames|4|12"
+  "engine (sequence engine, ring drive)|bin/markloop-pipeline-frames|--stage engine --frames|2000|12000"
+  "perception (marking detector, 1280x512 grey)|bin/markloop-pipeline-frames|--stage perception --frames|4|12"
 )
 
 for tool in qemu-x86_64 qemu-aarch64 cc; do

@@ -13,10 +13,10 @@
 #include <string>
 #include <vector>
 
-#include "cli/cli.hpp"
-#include "engine/sequence_engine.hpp"
-#include "perception/camera_model.hpp"
-#include "perception/marking_detector.hpp"
+#include "app/common/cli.hpp"
+#include "app/engine/sequence_engine.hpp"
+#include "app/perception/camera_model.hpp"
+#include "app/perception/marking_detector.hpp"
 #include "sim/drive.hpp"
 #include "sim/world.hpp"
 

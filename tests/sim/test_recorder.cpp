@@ -13,8 +13,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "drivers/can/candump_log.hpp"
-#include "io/y4m.hpp"
-#include "markloop/dbc/markloop_messages.hpp"
+#include "app/io/y4m.hpp"
+#include "dbc/markloop_messages.hpp"
 #include "sim/recorder.hpp"
 #include "sim/render.hpp"
 

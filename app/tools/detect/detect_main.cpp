@@ -1,0 +1,261 @@
+// markloop-detect: runs the road-marking detector on still images and prints
+// one JSON object per detection and line. A file that cannot be read, or
+// whose size is not the camera's, is reported on stderr and skipped; the
+// exit status is then 2, as for bad usage or a bad calibration (1: a view or
+// the output could not be written).
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+
+#include "app/common/cli.hpp"
+#include "app/tools/common/tool_files.hpp"
+#include "app/tools/common/still_image.hpp"
+#include "app/perception/camera_model.hpp"
+#include "app/perception/marking_classes.hpp"
+#include "app/perception/marking_classifier.hpp"
+#include "app/perception/marking_detector.hpp"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: markloop-detect --camera FILE [--min-score S] [--whole-only] [--view DIR]\n"
+    "                       IMAGE...\n"
+    "\n"
+    "Detects and classifies road markings in still images (PNG or JPEG, any\n"
+    "colour; converted to grey) taken by the camera FILE describes (OpenCV\n"
+    "YAML calibration, e.g. app/cameras/honda.yaml; its detector_* keys set the\n"
+    "road region searched). Prints one JSON object per detection and line:\n"
+    "  {\"image\": NAME, \"label\": LABEL, \"score\": S, \"quad\": [[x,y],...4],\n"
+    "   \"ground\": [x, y]}\n"
+    "quad: corners in the image's pixels (near left, near right, far right, far\n"
+    "left); ground: centre on the road in metres, vehicle frame (x ahead, y left).\n"
+    "A marking cut only by the view's near edge (the bonnet, the image's bottom,\n"
+    "the region's near end; its far end seen whole) is reported with\n"
+    "\"partial\": true, its quad and ground the visible part's.\n"
+    "With detector_horizon_from_lanes: 1 in FILE, each image's lane lines place\n"
+    "the horizon (a camera pitched other than calibrated) before detection.\n"
+    "\n"
+    "  --camera FILE   calibration (required)\n"
+    "  --min-score S   report detections scoring at least S (0..1; default the\n"
+    "                  detector's, 0.6)\n"
+    "  --whole-only    report no partial markings\n"
+    "  --view DIR      also write what the detector saw, per image DIR/NAME.png\n"
+    "                  (NAME without its extension): the bird's-eye view at twice\n"
+    "                  its size, bright paint in red, each candidate's box with its\n"
+    "                  class and score: green reported, yellow a marking class not\n"
+    "                  reported (C: cut by the view's edge; or below the score, a\n"
+    "                  piece of a larger marking, beyond the region), grey rejected;\n"
+    "                  J: a word split by its I (a letter taken for a line),\n"
+    "                  its candidates reported together\n"
+    "\n"
+    "Images are read whole, up to 256 MiB each.\n"
+    "Exit status: 0 on success; 1 when a view or the output cannot be written;\n"
+    "2 on bad options, a bad calibration or an image that cannot be used (the\n"
+    "other images are still run).\n";
+
+// JSON string escaping for file names.
+std::string json_string(const std::string& s) {
+  std::string out = "\"";
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (c < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
+// The view a user checks a miss against: which paint the threshold found,
+// how it was grouped, and what each group was called.
+bool write_view(const markloop::perception::MarkingDetector& detector,
+                std::span<const markloop::perception::Detection> reported, const std::string& path,
+                std::string& error) {
+  using namespace markloop::perception;
+  constexpr int kScale = 2;
+  cv::Mat view;
+  cv::cvtColor(detector.birdseye_image(), view, cv::COLOR_GRAY2BGR);
+  const cv::Mat& paint = detector.paint_mask();
+  for (int r = 0; r < view.rows; ++r)
+    for (int c = 0; c < view.cols; ++c)
+      if (paint.at<std::uint8_t>(r, c) != 0) {
+        auto& pixel = view.at<cv::Vec3b>(r, c);
+        pixel = {static_cast<std::uint8_t>(pixel[0] / 3), static_cast<std::uint8_t>(pixel[1] / 3), 255};
+      }
+  cv::resize(view, view, {}, kScale, kScale, cv::INTER_NEAREST);
+  const auto candidates = detector.candidates();
+  const auto reported_by = detector.reported_by();
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const Candidate& c = candidates[i];
+    // A word split by its I is reported as one, where its first candidate says.
+    const auto first = static_cast<std::size_t>(reported_by[i]);
+    const bool joined = first != i || reports_others(reported_by, i);
+    Detection where{};
+    detector.locate(joined ? joined_candidate(candidates, reported_by, first) : c, where);
+    const bool marking = c.predicted != kRejectClass;
+    bool was_reported = false;
+    for (const Detection& d : reported)
+      was_reported = was_reported || (static_cast<int>(d.label) == c.predicted &&
+                                      d.ground_x == where.ground_x && d.ground_y == where.ground_y);
+    const cv::Scalar colour = was_reported ? cv::Scalar(0, 220, 0)
+                              : marking    ? cv::Scalar(0, 220, 255)
+                                           : cv::Scalar(160, 160, 160);
+    const cv::Point top_left(c.col0 * kScale, c.row0 * kScale);
+    cv::rectangle(view, top_left, {(c.col1 + 1) * kScale - 1, (c.row1 + 1) * kScale - 1}, colour, 1);
+    char text[48];
+    std::snprintf(text, sizeof text, "%s %.2f%s%s",
+                  marking ? std::string(marking_class_name(static_cast<markloop::Label>(c.predicted))).c_str()
+                          : "reject",
+                  static_cast<double>(c.score), c.clipped ? " C" : "", joined ? " J" : "");
+    cv::putText(view, text, top_left + cv::Point(0, -3), cv::FONT_HERSHEY_PLAIN, 0.8, colour, 1);
+  }
+  return markloop::io::write_png(path, view, error);
+}
+
+// Why a path named as an image cannot be read as one, or nothing (a file, a
+// pipe: read_grey_still reads either, up to its limit).
+std::string not_a_file_reason(const std::filesystem::file_status& status,
+                              const std::error_code& error) {
+  if (std::filesystem::is_directory(status)) return "is a directory, not an image";
+  if (std::filesystem::exists(status)) return {};
+  if (error && error != std::errc::no_such_file_or_directory) return error.message();  // no access
+  return "no such file";
+}
+
+// The view of `image` under `view_dir`.
+std::string view_path(const std::string& view_dir, const std::string& image) {
+  return (std::filesystem::path(view_dir) / std::filesystem::path(image).stem()).string() + ".png";
+}
+
+// A view that would overwrite one of the images: refused before any is read.
+void check_views(const std::string& view_dir, const std::vector<std::string>& images) {
+  std::vector<markloop::tools::FileId> inputs;
+  for (const std::string& image : images)
+    if (const auto id = markloop::tools::regular_file_id(image)) inputs.push_back(*id);
+  for (const std::string& image : images) {
+    const std::string view = view_path(view_dir, image);
+    const auto id = markloop::tools::regular_file_id(view);
+    if (id && std::find(inputs.begin(), inputs.end(), *id) != inputs.end())
+      markloop::cli::fail(view + ": the view of " + image + " would overwrite an input image");
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace markloop::perception;
+  markloop::cli::program_name() = "markloop-detect";
+  std::string camera_path;
+  double min_score = -1.0;
+  bool whole_only = false;
+  std::string view_dir;
+  std::vector<std::string> images;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (arg == "--whole-only") {
+      whole_only = true;
+      continue;
+    }
+    if (arg.size() > 1 && arg[0] == '-') {
+      const char* value = markloop::cli::option_value(argc, argv, i, {"--camera", "--min-score", "--view"});
+      if (arg == "--camera") {
+        camera_path = value;
+      } else if (arg == "--view") {
+        view_dir = value;
+      } else {
+        min_score = markloop::cli::parse_number(arg, value);
+        if (min_score < 0.0 || min_score > 1.0)
+          markloop::cli::fail("--min-score: must be 0..1, got " + std::string(value));
+      }
+      continue;
+    }
+    images.push_back(arg);
+  }
+  if (camera_path.empty()) markloop::cli::fail("--camera FILE is required (see --help)");
+  if (images.empty()) markloop::cli::fail("no image given: IMAGE... is required (see --help)");
+
+  // Missing files are reported here, plainly, before OpenCV would log them.
+  std::error_code ec;
+  const std::filesystem::file_status camera_status = std::filesystem::status(camera_path, ec);
+  if (std::filesystem::is_directory(camera_status))
+    markloop::cli::fail(camera_path + ": is a directory, not a calibration file");
+  if (!std::filesystem::exists(camera_status)) markloop::cli::fail(camera_path + ": no such calibration file");
+  // The calibration is opened twice (camera, then detector keys): a pipe
+  // would be empty the second time.
+  if (!std::filesystem::is_regular_file(camera_status))
+    markloop::cli::fail(camera_path + ": not a regular file, which a calibration must be");
+  std::string error;
+  const auto camera = load_camera_model(camera_path, error);
+  if (!camera) markloop::cli::fail(error);
+  DetectorConfig config;
+  if (!load_detector_config(camera_path, config, error)) markloop::cli::fail(error);
+  if (min_score >= 0.0) config.min_score = static_cast<float>(min_score);
+  if (whole_only) config.report_partial_in_stills = false;
+  MarkingDetector detector(*camera, config);
+  if (!view_dir.empty()) {
+    std::error_code made;
+    std::filesystem::create_directories(view_dir, made);
+    if (!std::filesystem::is_directory(view_dir, ec))
+      markloop::tools::fail_run("--view " + view_dir + ": cannot create the directory" +
+                                (made ? " (" + made.message() + ")" : std::string()));
+    check_views(view_dir, images);
+  }
+
+  int bad_images = 0, unwritten_views = 0;
+  for (const std::string& path : images) {
+    const std::filesystem::file_status status = std::filesystem::status(path, ec);
+    if (const std::string reason = not_a_file_reason(status, ec); !reason.empty()) {
+      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), reason.c_str());
+      ++bad_images;
+      continue;
+    }
+    const cv::Mat grey =
+        markloop::io::read_grey_still(path, {camera->width(), camera->height()}, error);
+    if (grey.empty()) {
+      // A size that is not the camera's may be the calibration's fault: name it.
+      if (error.starts_with("image is ")) error += " (" + camera_path + ")";
+      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), error.c_str());
+      ++bad_images;
+      continue;
+    }
+    const std::string name = json_string(std::filesystem::path(path).filename().string());
+    // Each image on its own: its own lane lines place the horizon (when the
+    // calibration asks for it, detector_horizon_from_lanes).
+    const std::span<const Detection> detections = detector.detect_still(grey);
+    if (!view_dir.empty()) {
+      if (!write_view(detector, detections, view_path(view_dir, path), error)) {
+        std::fprintf(stderr, "markloop-detect: %s\n", error.c_str());
+        ++unwritten_views;
+      }
+    }
+    for (const Detection& d : detections) {
+      std::printf("{\"image\": %s, \"label\": \"%s\", \"score\": %.3f, \"quad\": [", name.c_str(),
+                  std::string(marking_class_name(d.label)).c_str(), static_cast<double>(d.score));
+      for (int k = 0; k < 4; ++k)
+        std::printf("%s[%.1f, %.1f]", k ? ", " : "", static_cast<double>(d.quad[k][0]),
+                    static_cast<double>(d.quad[k][1]));
+      std::printf("], \"ground\": [%.2f, %.2f]%s}\n", static_cast<double>(d.ground_x),
+                  static_cast<double>(d.ground_y), d.partial ? ", \"partial\": true" : "");
+    }
+  }
+  if (!markloop::tools::flush_stdout(error)) markloop::tools::fail_run(error);
+  return bad_images > 0 ? 2 : unwritten_views > 0 ? 1 : 0;
+}

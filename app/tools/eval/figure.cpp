@@ -1,0 +1,286 @@
+#include "app/tools/eval/figure.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "app/tools/common/tool_files.hpp"
+#include "app/perception/marking_classes.hpp"
+
+namespace markloop::eval {
+
+namespace {
+
+struct Rgb {
+  int r, g, b;
+};
+
+// One colour per marking class (index = Label), distinct on white.
+constexpr std::array<Rgb, perception::kMarkingClassCount> kClassColours = {{
+    {31, 119, 180}, {255, 127, 14}, {148, 103, 189}, {140, 86, 75},  {227, 119, 194},
+    {188, 189, 34}, {23, 190, 207}, {174, 199, 232}, {255, 187, 120}, {197, 176, 213},
+    {196, 156, 148}, {247, 182, 210}, {219, 219, 141}, {158, 218, 229}, {99, 99, 99},
+    {57, 59, 121},
+}};
+constexpr Rgb kRoute{40, 40, 40};
+constexpr Rgb kCorrect{0, 160, 60};
+constexpr Rgb kWrong{220, 30, 30};
+
+// Maps world metres (x east, y north) to picture pixels (y down), keeping the
+// aspect ratio, with room for the title above and the legend on the right.
+class Layout {
+ public:
+  static constexpr int kMaxWidth = 1000, kMaxHeight = 800;
+  static constexpr int kTitle = 64, kLegend = 180, kMargin = 24, kScaleBar = 36;
+
+  explicit Layout(const FigureContent& c) {
+    double min_x = std::numeric_limits<double>::max(), min_y = min_x;
+    double max_x = std::numeric_limits<double>::lowest(), max_y = max_x;
+    const auto extend = [&](double x, double y) {
+      min_x = std::min(min_x, x), max_x = std::max(max_x, x);
+      min_y = std::min(min_y, y), max_y = std::max(max_y, y);
+    };
+    for (const Pose2& p : *c.route) extend(p.x, p.y);
+    for (const WorldMarking& m : *c.markings) extend(m.x, m.y);
+    if (min_x > max_x) min_x = max_x = min_y = max_y = 0.0;  // nothing to draw
+    min_x_ = min_x, max_y_ = max_y;
+    const double span_x = std::max(max_x - min_x, 1.0), span_y = std::max(max_y - min_y, 1.0);
+    const double plot_w = kMaxWidth - kLegend - 2 * kMargin;
+    const double plot_h = kMaxHeight - kTitle - kScaleBar - 2 * kMargin;
+    scale_ = std::min(plot_w / span_x, plot_h / span_y);
+    plot_width_ = static_cast<int>(std::ceil(span_x * scale_));
+    plot_height_ = static_cast<int>(std::ceil(span_y * scale_));
+    width_ = std::max(plot_width_ + kLegend + 2 * kMargin, 520);
+    height_ = std::max(plot_height_ + kTitle + kScaleBar + 2 * kMargin, 320);
+  }
+
+  double px(double x) const { return kMargin + (x - min_x_) * scale_; }
+  double py(double y) const { return kTitle + kMargin + (max_y_ - y) * scale_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int legend_x() const { return kMargin + plot_width_ + kMargin; }
+  int scale_bar_y() const { return kTitle + kMargin + plot_height_ + kScaleBar / 2 + 6; }
+  double pixels_per_metre() const { return scale_; }
+
+  // A round length (1, 2 or 5 times a power of ten) about a fifth of the plot.
+  double scale_bar_m() const {
+    const double target = std::max(plot_width_, 50) / 5.0 / scale_;
+    const double power = std::pow(10.0, std::floor(std::log10(target)));
+    for (const double step : {5.0, 2.0, 1.0})
+      if (step * power <= target) return step * power;
+    return power;
+  }
+
+ private:
+  double min_x_ = 0, max_y_ = 0, scale_ = 1;
+  int plot_width_ = 0, plot_height_ = 0, width_ = 0, height_ = 0;
+};
+
+std::string length_text(double metres) {
+  char text[32];
+  if (metres >= 1000.0) std::snprintf(text, sizeof text, "%g km", metres / 1000.0);
+  else std::snprintf(text, sizeof text, "%g m", metres);
+  return text;
+}
+
+// Classes that occur in the world, in label order, for the legend.
+std::vector<Label> classes_present(const std::vector<WorldMarking>& markings) {
+  std::array<bool, perception::kMarkingClassCount> present{};
+  for (const WorldMarking& m : markings) present[m.label] = true;
+  std::vector<Label> labels;
+  for (std::size_t i = 0; i < present.size(); ++i)
+    if (present[i]) labels.push_back(static_cast<Label>(i));
+  return labels;
+}
+
+std::string xml_escaped(std::string_view text) {
+  std::string out;
+  for (const char c : text) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+std::string svg_colour(Rgb c) {
+  char text[16];
+  std::snprintf(text, sizeof text, "#%02x%02x%02x", c.r, c.g, c.b);
+  return text;
+}
+
+cv::Scalar bgr(Rgb c) { return {double(c.b), double(c.g), double(c.r)}; }
+
+}  // namespace
+
+bool write_svg(const std::string& path, const FigureContent& c, std::string& error) {
+  const Layout layout(c);
+  tools::OutputFile file;
+  if (!file.open(path, error)) return false;
+  std::FILE* f = file.get();
+  std::fprintf(f,
+               "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+               "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%d\" height=\"%d\" "
+               "viewBox=\"0 0 %d %d\" font-family=\"sans-serif\">\n"
+               "<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n",
+               layout.width(), layout.height(), layout.width(), layout.height());
+  std::fprintf(f, "<text x=\"%d\" y=\"26\" font-size=\"18\" font-weight=\"bold\">%s</text>\n",
+               Layout::kMargin, xml_escaped(c.title).c_str());
+  std::fprintf(f, "<text x=\"%d\" y=\"50\" font-size=\"13\">%s</text>\n", Layout::kMargin,
+               xml_escaped(c.subtitle).c_str());
+
+  // Route: one polyline, decimated to about a pixel per point.
+  std::fprintf(f, "<polyline fill=\"none\" stroke=\"%s\" stroke-width=\"1.2\" points=\"",
+               svg_colour(kRoute).c_str());
+  double last_x = -1e9, last_y = -1e9;
+  const auto& route = *c.route;
+  for (std::size_t i = 0; i < route.size(); ++i) {
+    const double x = layout.px(route[i].x), y = layout.py(route[i].y);
+    if (i + 1 < route.size() && std::hypot(x - last_x, y - last_y) < 1.0) continue;
+    std::fprintf(f, "%.1f,%.1f ", x, y);
+    last_x = x, last_y = y;
+  }
+  std::fprintf(f, "\"/>\n");
+
+  for (const WorldMarking& m : *c.markings)
+    std::fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"3\" fill=\"%s\"/>\n", layout.px(m.x),
+                 layout.py(m.y), svg_colour(kClassColours[m.label]).c_str());
+
+  for (const LoopOutcome& loop : *c.loops) {
+    if (loop.verdict == Verdict::Unjudged) continue;
+    const Pose2& q = route[loop.pair.query];
+    const Pose2& m = route[loop.pair.match];
+    const std::string colour = svg_colour(loop.verdict == Verdict::Correct ? kCorrect : kWrong);
+    std::fprintf(f,
+                 "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"%s\" "
+                 "stroke-width=\"1.5\"><title>frame %u - frame %u</title></line>\n",
+                 layout.px(q.x), layout.py(q.y), layout.px(m.x), layout.py(m.y), colour.c_str(),
+                 loop.pair.query, loop.pair.match);
+    for (const Pose2* p : {&q, &m})
+      std::fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"4\" fill=\"none\" stroke=\"%s\" stroke-width=\"1.5\"/>\n",
+                   layout.px(p->x), layout.py(p->y), colour.c_str());
+  }
+
+  // Scale bar.
+  const double bar_m = layout.scale_bar_m();
+  const double bar_px = bar_m * layout.pixels_per_metre();
+  const int bar_y = layout.scale_bar_y();
+  std::fprintf(f,
+               "<path d=\"M %d %d v 6 h %.1f v -6\" fill=\"none\" stroke=\"black\" stroke-width=\"1.5\"/>\n"
+               "<text x=\"%.1f\" y=\"%d\" font-size=\"12\">%s</text>\n",
+               Layout::kMargin, bar_y - 6, bar_px, Layout::kMargin + bar_px + 8, bar_y + 4,
+               length_text(bar_m).c_str());
+
+  // Legend.
+  int y = Layout::kTitle + Layout::kMargin + 10;
+  const int x = layout.legend_x();
+  const auto legend_line = [&](Rgb colour, const char* text) {
+    std::fprintf(f,
+                 "<line x1=\"%d\" y1=\"%d\" x2=\"%d\" y2=\"%d\" stroke=\"%s\" stroke-width=\"2\"/>"
+                 "<text x=\"%d\" y=\"%d\" font-size=\"12\">%s</text>\n",
+                 x, y, x + 22, y, svg_colour(colour).c_str(), x + 30, y + 4, text);
+    y += 20;
+  };
+  legend_line(kRoute, "route (truth)");
+  legend_line(kCorrect, "correct loop");
+  legend_line(kWrong, "wrong loop");
+  y += 6;
+  for (const Label label : classes_present(*c.markings)) {
+    std::fprintf(f,
+                 "<circle cx=\"%d\" cy=\"%d\" r=\"4\" fill=\"%s\"/>"
+                 "<text x=\"%d\" y=\"%d\" font-size=\"12\">%s</text>\n",
+                 x + 11, y, svg_colour(kClassColours[label]).c_str(), x + 30, y + 4,
+                 xml_escaped(perception::marking_class_name(label)).c_str());
+    y += 17;
+  }
+  std::fprintf(f, "</svg>\n");
+  return file.close(error);
+}
+
+bool write_png(const std::string& path, const FigureContent& c, std::string& error) {
+  const Layout layout(c);
+  cv::Mat image(layout.height(), layout.width(), CV_8UC3, cv::Scalar(255, 255, 255));
+  const auto point = [&](double x, double y) {
+    return cv::Point(static_cast<int>(std::lround(layout.px(x))), static_cast<int>(std::lround(layout.py(y))));
+  };
+  cv::putText(image, c.title, {Layout::kMargin, 26}, cv::FONT_HERSHEY_SIMPLEX, 0.65, {0, 0, 0}, 2,
+              cv::LINE_AA);
+  cv::putText(image, c.subtitle, {Layout::kMargin, 50}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1,
+              cv::LINE_AA);
+
+  std::vector<cv::Point> polyline;
+  for (const Pose2& p : *c.route) {
+    const cv::Point q = point(p.x, p.y);
+    if (polyline.empty() || polyline.back() != q) polyline.push_back(q);
+  }
+  if (polyline.size() > 1)
+    cv::polylines(image, polyline, false, bgr(kRoute), 1, cv::LINE_AA);
+  for (const WorldMarking& m : *c.markings)
+    cv::circle(image, point(m.x, m.y), 3, bgr(kClassColours[m.label]), cv::FILLED, cv::LINE_AA);
+  for (const LoopOutcome& loop : *c.loops) {
+    if (loop.verdict == Verdict::Unjudged) continue;
+    const cv::Scalar colour = bgr(loop.verdict == Verdict::Correct ? kCorrect : kWrong);
+    const Pose2& q = (*c.route)[loop.pair.query];
+    const Pose2& m = (*c.route)[loop.pair.match];
+    cv::line(image, point(q.x, q.y), point(m.x, m.y), colour, 2, cv::LINE_AA);
+    cv::circle(image, point(q.x, q.y), 4, colour, 1, cv::LINE_AA);
+    cv::circle(image, point(m.x, m.y), 4, colour, 1, cv::LINE_AA);
+  }
+
+  const double bar_m = layout.scale_bar_m();
+  const int bar_px = static_cast<int>(std::lround(bar_m * layout.pixels_per_metre()));
+  const int bar_y = layout.scale_bar_y();
+  const cv::Point left{Layout::kMargin, bar_y};
+  cv::line(image, left - cv::Point(0, 6), left, {0, 0, 0}, 1);
+  cv::line(image, left, left + cv::Point(bar_px, 0), {0, 0, 0}, 1);
+  cv::line(image, left + cv::Point(bar_px, 0), left + cv::Point(bar_px, -6), {0, 0, 0}, 1);
+  cv::putText(image, length_text(bar_m), left + cv::Point(bar_px + 8, 4), cv::FONT_HERSHEY_SIMPLEX,
+              0.45, {0, 0, 0}, 1, cv::LINE_AA);
+
+  int y = Layout::kTitle + Layout::kMargin + 10;
+  const int x = layout.legend_x();
+  const auto legend_line = [&](Rgb colour, const char* text) {
+    cv::line(image, {x, y}, {x + 22, y}, bgr(colour), 2, cv::LINE_AA);
+    cv::putText(image, text, {x + 30, y + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1, cv::LINE_AA);
+    y += 20;
+  };
+  legend_line(kRoute, "route (truth)");
+  legend_line(kCorrect, "correct loop");
+  legend_line(kWrong, "wrong loop");
+  y += 6;
+  for (const Label label : classes_present(*c.markings)) {
+    cv::circle(image, {x + 11, y}, 4, bgr(kClassColours[label]), cv::FILLED, cv::LINE_AA);
+    cv::putText(image, std::string(perception::marking_class_name(label)), {x + 30, y + 5},
+                cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1, cv::LINE_AA);
+    y += 17;
+  }
+
+  // Encoded in memory, then written as every output is: a failed write says
+  // why (a full disk), where imwrite only returns false.
+  std::vector<std::uint8_t> png;
+  bool encoded = false;
+  try {
+    encoded = cv::imencode(".png", image, png);
+  } catch (const cv::Exception& e) {
+    error = path + ": cannot encode the PNG: " + e.what();
+    return false;
+  }
+  if (!encoded) {
+    error = path + ": cannot encode the PNG";
+    return false;
+  }
+  return tools::write_whole_file(path, png.data(), png.size(), error);
+}
+
+}  // namespace markloop::eval

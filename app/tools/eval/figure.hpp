@@ -1,0 +1,29 @@
+// The picture of a run, after the paper's Fig. 3: the route driven, the
+// world's markings coloured by class, and every loop detection as a line
+// joining the true positions of its two frames (green correct, red wrong).
+// Written as SVG (text, by hand) and PNG (OpenCV).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "app/engine/types.hpp"
+#include "app/tools/eval/inputs.hpp"
+#include "app/tools/eval/scoring.hpp"
+
+namespace markloop::eval {
+
+struct FigureContent {
+  const std::vector<Pose2>* route = nullptr;  // true pose per frame
+  const std::vector<WorldMarking>* markings = nullptr;
+  const std::vector<LoopOutcome>* loops = nullptr;
+  std::string title;
+  std::string subtitle;
+};
+
+// Each returns false and sets `error` ("PATH: why") when the file cannot be
+// written.
+bool write_svg(const std::string& path, const FigureContent& content, std::string& error);
+bool write_png(const std::string& path, const FigureContent& content, std::string& error);
+
+}  // namespace markloop::eval

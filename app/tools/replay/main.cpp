@@ -1,0 +1,522 @@
+// markloop-replay: runs the sequence engine (or the authors' batch program,
+// --compat) on detections recorded in the paper's dataset format.
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <memory>
+#include <new>
+#include <numbers>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "app/common/cli.hpp"
+#include "app/common/memory_check.hpp"
+#include "app/tools/common/tool_files.hpp"
+#include "app/tools/replay/compat.hpp"
+#include "app/tools/replay/paper_format.hpp"
+#include "app/tools/replay/replay.hpp"
+
+namespace {
+
+using namespace markloop;
+using namespace markloop::replay;
+using namespace markloop::cli;
+
+constexpr double kDegPerRad = 180.0 / std::numbers::pi;
+
+constexpr const char* kUsage = R"(usage: markloop-replay --markings FILE [options]
+
+Runs the online road-marking sequence engine on recorded detections and
+prints the loops / places it found.
+
+input:
+  --markings FILE        detections, road_marking_centroids_3Dposition.txt
+                         format: the record count, then "frame x y z label"
+                         per record (y points down; the ground is x-z)
+  --poses FILE           one camera pose per frame (KITTI 3x4 [R|t]); the
+                         source of travelled distance. Without it, distance
+                         is measured along the markings themselves
+  --fps HZ               frame rate, for time, 0.001 to 1000000; default 10
+
+engine (each value must lie in the range given):
+  --k N                  sequence length, 2 to 10; default 4
+  --abs-tol M            distance tolerance, absolute part, 0.001 to 100 m;
+                         default 0.5
+  --rel-tol R            distance tolerance, relative part, 0 to 0.1;
+                         default 0.02
+  --min-separation M     a match lies at least this far back, 0 to 10000 m;
+                         default 100
+  --min-separation-s S   ... and at least this long ago, 0 to 86400 s;
+                         default 10
+  --max-residual M       largest RMS residual of the rigid fit, 0.001 to
+                         100 m; default 0.5
+  --association-radius M observations of one marking lie this close, 0.01 to
+                         100 m; default 1.5
+  --commit-after S       a marking unseen this long has left view, 0.01 to
+                         100 s; default 0.5
+  --min-observations N   detections needed to make a landmark, 1 to 1000;
+                         default 2
+  --skip-rows N          rows a sequence may step over, 0 or 1; default 1
+  --sequence-capacity N  database size in sequences, 16 to 1073741824 (2^30);
+                         default 1048576
+  --landmark-capacity N  database size in landmarks, 16 to 1073741824 (2^30);
+                         default 262144
+
+  --compat               run the authors' batch program instead: frame gap
+                         T = 30, match gap 100 T, distance tolerance 2 m, same
+                         matches in the same order (only --k applies); a long
+                         run reports its progress on stderr unless --quiet
+
+output:
+  --out FILE             matches in the authors' image_matches.txt format
+  --jsonl FILE           one JSON record per match, with poses and residuals
+  --truth FILE           ground truth (simulator frames.csv or KITTI poses):
+                         report correct and wrong matches, revisit recall and
+                         relative pose error
+  --truth-radius M       a match is correct when the two frames' true
+                         positions are this close, 0.01 to 10000 m; default 10
+  --sweep A..B           run k = A..B (2 <= A <= B <= 10) and print a table
+                         of matches (and, with --truth, the share of correct
+                         ones)
+  --quiet                print only the summary
+  --help                 this text
+
+Input files are read whole: --markings, --poses and --truth may hold up to
+256 MiB each. --poses and --truth must hold a pose for every frame the
+markings use. An output may not be one of the input files.
+
+A numeric option that is no number or lies outside its range is refused
+(exit status 2) naming the option and its range; the engine checks the
+settings as a whole last.
+
+Exit status: 0 on success; 1 when an output cannot be written; 2 on bad
+options or input, or a database larger than the memory available.
+)";
+
+struct Options {
+  std::string markings, poses, out, jsonl, truth;
+  double fps = 10.0;
+  double truth_radius = 10.0;
+  bool compat = false;
+  bool quiet = false;
+  unsigned sweep_first = 0, sweep_last = 0;
+  EngineConfig engine;
+};
+
+// The documented range of a numeric option (see kUsage), checked where the
+// option is parsed so that the message names it: the engine's validate()
+// stays the last check, of the whole configuration.
+struct Range {
+  double min, max;
+  const char* unit;  // "" for a count or a ratio
+  bool whole;        // a count: no fractions
+};
+
+constexpr Range kFpsRange{0.001, 1e6, "Hz", false};
+constexpr Range kTruthRadiusRange{0.01, 10000.0, "metres", false};
+constexpr Range kKRange{2, kMaxSequenceLength, "", true};
+constexpr Range kAbsTolRange{0.001, 100.0, "metres", false};
+constexpr Range kRelTolRange{0.0, 0.1, "", false};
+constexpr Range kMinSeparationRange{0.0, 10000.0, "metres", false};
+constexpr Range kMinSeparationSRange{0.0, 86400.0, "seconds", false};
+constexpr Range kMaxResidualRange{0.001, 100.0, "metres", false};
+constexpr Range kAssociationRadiusRange{0.01, 100.0, "metres", false};
+constexpr Range kCommitAfterRange{0.01, 100.0, "seconds", false};
+constexpr Range kMinObservationsRange{1, 1000, "", true};
+constexpr Range kSkipRowsRange{0, 1, "", true};
+constexpr Range kCapacityRange{16, double(std::size_t{1} << 30), "", true};
+
+std::string number_text(double v) {
+  char buf[64];
+  if (v == std::floor(v) && std::fabs(v) < 1e15) std::snprintf(buf, sizeof buf, "%.0f", v);
+  else std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// "0.001 to 100 (metres)", "0 to 1".
+std::string range_text(const Range& r) {
+  std::string text = number_text(r.min) + " to " + number_text(r.max);
+  if (*r.unit != '\0') text += std::string(" (") + r.unit + ")";
+  return text;
+}
+
+// The value of `option` as a number within `r`; fails naming the option and
+// the range: "--abs-tol: 2147483648 is outside 0.001 to 100 (metres)".
+double parse_in_range(std::string_view option, const char* text, const Range& r) {
+  const std::string name(option);
+  char* end = nullptr;
+  const double value = std::strtod(text, &end);
+  const bool parsed = end != text && *end == '\0';
+  // Infinity, and what overflows a double (1e999), is a number out of range.
+  if (!parsed || std::isnan(value))
+    fail(name + ": not a number: '" + text + "'; expected " + range_text(r));
+  if (!(value >= r.min && value <= r.max)) fail(name + ": " + text + " is outside " + range_text(r));
+  if (r.whole && value != std::floor(value))
+    fail(name + ": not a whole number: '" + text + "'; expected " + range_text(r));
+  return value;
+}
+
+unsigned parse_count(std::string_view option, const char* text, const Range& r) {
+  return static_cast<unsigned>(parse_in_range(option, text, r));
+}
+
+Options parse(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      std::exit(0);
+    }
+    if (arg == "--compat") { o.compat = true; continue; }
+    if (arg == "--quiet") { o.quiet = true; continue; }
+    const char* v = option_value(
+        argc, argv, i,
+        {"--markings", "--poses", "--out", "--jsonl", "--truth", "--fps", "--truth-radius", "--k",
+         "--abs-tol", "--rel-tol", "--min-separation", "--min-separation-s", "--max-residual",
+         "--association-radius", "--commit-after", "--min-observations", "--skip-rows",
+         "--sequence-capacity", "--landmark-capacity", "--sweep"});
+    EngineConfig& e = o.engine;
+    if (arg == "--markings") o.markings = v;
+    else if (arg == "--poses") o.poses = v;
+    else if (arg == "--out") o.out = v;
+    else if (arg == "--jsonl") o.jsonl = v;
+    else if (arg == "--truth") o.truth = v;
+    else if (arg == "--fps") o.fps = parse_in_range(arg, v, kFpsRange);
+    else if (arg == "--truth-radius") o.truth_radius = parse_in_range(arg, v, kTruthRadiusRange);
+    else if (arg == "--k") e.chain.k = parse_count(arg, v, kKRange);
+    else if (arg == "--abs-tol") e.match.distance_tolerance_abs_m = parse_in_range(arg, v, kAbsTolRange);
+    else if (arg == "--rel-tol") e.match.distance_tolerance_rel = parse_in_range(arg, v, kRelTolRange);
+    else if (arg == "--min-separation") e.match.min_separation_m = parse_in_range(arg, v, kMinSeparationRange);
+    else if (arg == "--min-separation-s") e.match.min_separation_s = parse_in_range(arg, v, kMinSeparationSRange);
+    else if (arg == "--max-residual") e.match.max_residual_m = parse_in_range(arg, v, kMaxResidualRange);
+    else if (arg == "--association-radius")
+      e.tracker.association_radius_m = parse_in_range(arg, v, kAssociationRadiusRange);
+    else if (arg == "--commit-after") e.tracker.commit_after_s = parse_in_range(arg, v, kCommitAfterRange);
+    else if (arg == "--min-observations") e.tracker.min_observations = parse_count(arg, v, kMinObservationsRange);
+    else if (arg == "--skip-rows") e.chain.max_skipped_rows = parse_count(arg, v, kSkipRowsRange);
+    else if (arg == "--sequence-capacity")
+      e.database.sequence_capacity = static_cast<std::size_t>(parse_in_range(arg, v, kCapacityRange));
+    else if (arg == "--landmark-capacity")
+      e.database.landmark_capacity = static_cast<std::size_t>(parse_in_range(arg, v, kCapacityRange));
+    else if (arg == "--sweep") {
+      const std::string text = v;
+      const auto dots = text.find("..");
+      const std::string expected = "--sweep: expected A..B with 2 <= A <= B <= " +
+                                   std::to_string(kMaxSequenceLength) + ", found '" + text + "'";
+      if (dots == std::string::npos) fail(expected);
+      const std::string first = text.substr(0, dots), last = text.substr(dots + 2);
+      const auto whole = [&](const std::string& part) {
+        char* end = nullptr;
+        const double value = std::strtod(part.c_str(), &end);
+        if (part.empty() || *end != '\0' || !(value >= 2 && value <= kMaxSequenceLength) ||
+            value != std::floor(value))
+          fail(expected);
+        return static_cast<unsigned>(value);
+      };
+      o.sweep_first = whole(first);
+      o.sweep_last = whole(last);
+      if (o.sweep_first > o.sweep_last) fail(expected);
+    }
+  }
+  if (o.markings.empty()) fail("--markings FILE is required (see --help)");
+  // The last check, of the whole configuration (each option was checked above).
+  if (const char* problem = validate(o.engine)) fail(std::string("engine settings: ") + problem);
+  return o;
+}
+
+void write_frames(FILE* f, std::span<const int> frames) {
+  for (const int frame : frames) std::fprintf(f, "%d ", frame);
+  std::fputc('\n', f);
+}
+
+std::vector<int> frames_of(const MatchEvent& e, bool query) {
+  std::vector<int> frames;
+  for (unsigned i = 0; i < e.k; ++i)
+    frames.push_back(static_cast<int>(query ? e.query[i].last_frame : e.match[i].last_frame));
+  return frames;
+}
+
+void write_jsonl(FILE* f, const MatchEvent& e, const LabelTable& labels, const TruthJudge* judge) {
+  const auto positions = [&](const auto& landmarks) {
+    std::string s = "[";
+    for (unsigned i = 0; i < e.k; ++i) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%s[%.3f,%.3f]", i ? "," : "", landmarks[i].x, landmarks[i].y);
+      s += buf;
+    }
+    return s + "]";
+  };
+  const auto frames = [&](bool query) {
+    std::string s = "[";
+    for (const int frame : frames_of(e, query)) {
+      if (s.size() > 1) s += ',';
+      s += std::to_string(frame);
+    }
+    return s + "]";
+  };
+  std::string label_list = "[";
+  for (unsigned i = 0; i < e.k; ++i) {
+    label_list += i ? ",\"" : "\"";
+    for (const char c : labels.name(e.query[i].label)) {
+      if (c == '"' || c == '\\') label_list += '\\';
+      label_list += c;
+    }
+    label_list += '"';
+  }
+  label_list += "]";
+  std::fprintf(f,
+               "{\"query_frame\":%u,\"match_frame\":%u,\"query_frames\":%s,\"match_frames\":%s,"
+               "\"labels\":%s,\"query_positions\":%s,\"match_positions\":%s,"
+               "\"alignment\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},",
+               e.query_frame(), e.match_frame(), frames(true).c_str(), frames(false).c_str(),
+               label_list.c_str(), positions(e.query).c_str(), positions(e.match).c_str(),
+               e.alignment.x, e.alignment.y, e.alignment.yaw * kDegPerRad);
+  if (e.has_relative_pose)
+    std::fprintf(f, "\"relative_pose\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},",
+                 e.relative_pose.x, e.relative_pose.y, e.relative_pose.yaw * kDegPerRad);
+  std::fprintf(f, "\"residual_m\":%.4f,\"score\":%.4f,\"verified_candidates\":%u", e.residual_m,
+               e.score, e.verified_candidates);
+  if (judge != nullptr && judge->covers(e.query_frame()) && judge->covers(e.match_frame()))
+    std::fprintf(f, ",\"correct\":%s", judge->correct({e.query_frame(), e.match_frame()}) ? "true" : "false");
+  std::fputs("}\n", f);
+}
+
+void print_evaluation(const Evaluation& e) {
+  const std::size_t judged = e.correct + e.wrong;
+  std::printf("truth: %zu correct, %zu wrong", e.correct, e.wrong);
+  if (judged > 0) std::printf(" (precision %.1f%%)", 100.0 * double(e.correct) / double(judged));
+  if (e.unjudged > 0) std::printf(", %zu beyond the truth file", e.unjudged);
+  std::printf("\n");
+  if (e.revisit_segments > 0)
+    std::printf("revisits: %zu of %zu revisited 100 m stretches detected (recall %.1f%%)\n",
+                e.revisit_segments_detected, e.revisit_segments,
+                100.0 * double(e.revisit_segments_detected) / double(e.revisit_segments));
+  if (e.pose_errors > 0)
+    std::printf("relative pose error: mean %.3f m / %.2f deg, max %.3f m / %.2f deg (%zu matches)\n",
+                e.translation_error_mean_m, e.rotation_error_mean_deg, e.translation_error_max_m,
+                e.rotation_error_max_deg, e.pose_errors);
+}
+
+// A long --compat run says how far it is on stderr, every few seconds.
+CompatProgressReport compat_progress(bool quiet) {
+  if (quiet) return {};
+  using Clock = std::chrono::steady_clock;
+  return [next = Clock::now() + std::chrono::seconds(3)](const CompatProgress& p) mutable {
+    if (Clock::now() < next) return;
+    next = Clock::now() + std::chrono::seconds(3);
+    std::fprintf(stderr, "%s: --compat: %zu / %zu records read, %zu sequences made", program_name(),
+                 p.records_read, p.records, p.sequences);
+    if (p.searched > 0)
+      std::fprintf(stderr, ", %zu / %zu complete ones searched", p.searched, p.complete);
+    std::fprintf(stderr, ", %zu matches found\n", p.matches);
+  };
+}
+
+std::vector<FramePair> compat_pairs(const CompatMatches& matches) {
+  std::vector<FramePair> pairs;
+  for (std::size_t i = 0; i < matches.size(); ++i)
+    pairs.push_back({static_cast<FrameIndex>(matches.later(i).back()),
+                     static_cast<FrameIndex>(matches.earlier(i).back())});
+  return pairs;
+}
+
+// The record that uses the last frame (the first such).
+const MarkingRecord* last_frame_record(const std::vector<MarkingRecord>& records) {
+  const MarkingRecord* last = nullptr;
+  for (const MarkingRecord& r : records)
+    if (last == nullptr || r.frame > last->frame) last = &r;
+  return last;
+}
+
+// Poses (the odometry) and truth (the judge) are per frame: a file that
+// stops short of the markings' frames would leave frames unseen unnoticed.
+void check_covers(const std::string& path, std::size_t count, const char* what, const Options& o,
+                  const std::vector<MarkingRecord>& records) {
+  const MarkingRecord* last = last_frame_record(records);
+  if (count == 0 && last == nullptr) fail(path + ": has no " + what + "s");
+  if (last == nullptr || count > static_cast<std::size_t>(last->frame)) return;
+  fail(path + ": has " + std::to_string(count) + " " + what + (count == 1 ? "" : "s") +
+       ", the markings reach frame " + std::to_string(last->frame) + " (" + o.markings + ":" +
+       std::to_string(last->line) + "; one " + what + " per frame, line i for frame i)");
+}
+
+// The engine takes the records in frame order: say so when the file's order
+// is another (the paper's files are in frame order).
+void warn_unordered(const std::string& path, const std::vector<MarkingRecord>& records) {
+  for (std::size_t i = 1; i < records.size(); ++i) {
+    if (records[i].frame >= records[i - 1].frame) continue;
+    std::fprintf(stderr, "%s: %s:%d: frame %d after frame %d: the records are taken in frame order\n",
+                 program_name(), path.c_str(), records[i].line, records[i].frame, records[i - 1].frame);
+    return;
+  }
+}
+
+// An output that is one of the inputs would destroy it: refused before the run.
+void check_outputs(const Options& o) {
+  const std::pair<const char*, const std::string*> inputs[] = {
+      {"--markings", &o.markings}, {"--poses", &o.poses}, {"--truth", &o.truth}};
+  for (const std::string* output : {&o.out, &o.jsonl})
+    for (const auto& [option, input] : inputs)
+      if (!output->empty() && !input->empty() && tools::overwrites(*output, *input))
+        fail(*output + ": is the " + option + " input: an output may not overwrite it");
+}
+
+// The database is allocated whole when the engine is built: a size this
+// machine cannot hold is refused here, naming the options.
+void check_database_fits(const Options& o) {
+  const unsigned k = o.sweep_first == 0 ? o.engine.chain.k : o.sweep_last;
+  const std::string problem =
+      database_memory_error(o.engine.database, k, "--landmark-capacity", "--sequence-capacity");
+  if (!problem.empty()) fail(problem);
+}
+
+int replay_main(int argc, char** argv) {
+  const Options o = parse(argc, argv);
+  check_outputs(o);
+  std::string error;
+  std::vector<MarkingRecord> records;
+  if (!load_markings(o.markings, records, error)) fail(error);
+  warn_unordered(o.markings, records);
+  std::vector<Pose2> poses;
+  if (!o.poses.empty()) {
+    if (!load_kitti_poses(o.poses, poses, error)) fail(error);
+    check_covers(o.poses, poses.size(), "pose", o, records);
+  }
+  if (!o.compat) check_database_fits(o);
+  std::unique_ptr<TruthJudge> judge;
+  if (!o.truth.empty()) {
+    std::vector<Pose2> truth;
+    if (!load_truth(o.truth, truth, error)) fail(error);
+    check_covers(o.truth, truth.size(), "true pose", o, records);
+    judge = std::make_unique<TruthJudge>(std::move(truth), o.truth_radius,
+                                         o.engine.match.min_separation_m);
+  }
+  LabelTable labels;
+
+  // One run: returns the frame pairs found, writing outputs when asked.
+  const auto run = [&](unsigned k, bool write) -> std::vector<FramePair> {
+    if (o.compat) {
+      CompatParameters parameters;
+      parameters.k = k;
+      const auto matches = run_compat(records, parameters, compat_progress(o.quiet));
+      if (write && !o.out.empty()) {
+        tools::OutputFile f;
+        if (!f.open(o.out, error)) tools::fail_run(error);
+        for (std::size_t i = 0; i < matches.size(); ++i) {
+          write_frames(f.get(), matches.earlier(i));
+          write_frames(f.get(), matches.later(i));
+        }
+        if (!f.close(error)) tools::fail_run(error);
+      }
+      return compat_pairs(matches);
+    }
+    EngineConfig config = o.engine;
+    config.chain.k = k;
+    const ReplayResult result = run_engine(records, poses, labels, config, o.fps);
+    if (write) {
+      if (!o.out.empty()) {
+        tools::OutputFile f;
+        if (!f.open(o.out, error)) tools::fail_run(error);
+        for (const MatchEvent& e : result.matches) {
+          write_frames(f.get(), frames_of(e, false));
+          write_frames(f.get(), frames_of(e, true));
+        }
+        if (!f.close(error)) tools::fail_run(error);
+      }
+      if (!o.jsonl.empty()) {
+        tools::OutputFile f;
+        if (!f.open(o.jsonl, error)) tools::fail_run(error);
+        for (const MatchEvent& e : result.matches) write_jsonl(f.get(), e, labels, judge.get());
+        if (!f.close(error)) tools::fail_run(error);
+      }
+      const auto& c = result.counters;
+      std::printf("markloop-replay: %zu detections in %zu frames -> %llu landmarks, %llu sequences "
+                  "of k=%u, %llu queries, %llu candidates (%llu too recent, %llu failed the rigid "
+                  "fit)\n",
+                  records.size(), result.frames, (unsigned long long)c.landmarks_released,
+                  (unsigned long long)c.sequences_created, k, (unsigned long long)c.queries,
+                  (unsigned long long)c.candidates, (unsigned long long)c.candidates_too_recent,
+                  (unsigned long long)c.candidates_rejected_residual);
+      if (!o.quiet) {
+        for (const MatchEvent& e : result.matches) {
+          std::printf("  loop: frame %u matches frame %u  [", e.query_frame(), e.match_frame());
+          for (unsigned i = 0; i < e.k; ++i)
+            std::printf("%s%s", i ? " " : "", labels.name(e.query[i].label).c_str());
+          std::printf("]  residual %.3f m  score %.2f", e.residual_m, e.score);
+          if (e.has_relative_pose)
+            std::printf("  relative pose (%.2f m, %.2f m, %.1f deg)", e.relative_pose.x,
+                        e.relative_pose.y, e.relative_pose.yaw * kDegPerRad);
+          if (judge && judge->covers(e.query_frame()) && judge->covers(e.match_frame()) &&
+              !judge->correct({e.query_frame(), e.match_frame()}))
+            std::printf("  WRONG");
+          std::printf("\n");
+        }
+      }
+      std::vector<FramePair> pairs = frame_pairs(result.matches);
+      std::printf("matches: %zu\n", result.matches.size());
+      if (judge) print_evaluation(judge->evaluate(pairs, relative_poses(result.matches)));
+      return pairs;
+    }
+    return frame_pairs(result.matches);
+  };
+
+  if (o.sweep_first == 0) {
+    const auto pairs = run(o.engine.chain.k, true);
+    if (o.compat) {
+      std::printf("markloop-replay --compat: %zu records -> %zu matches (k=%u)\n", records.size(),
+                  pairs.size(), o.engine.chain.k);
+      if (judge) print_evaluation(judge->evaluate(pairs));
+    }
+    if (!tools::flush_stdout(error)) tools::fail_run(error);
+    return 0;
+  }
+
+  std::printf("%-22s", "Search window size");
+  for (unsigned k = o.sweep_first; k <= o.sweep_last; ++k) std::printf(" %6u", k);
+  std::vector<std::size_t> counts, correct, judged;
+  for (unsigned k = o.sweep_first; k <= o.sweep_last; ++k) {
+    const auto pairs = run(k, false);
+    counts.push_back(pairs.size());
+    if (judge) {
+      const Evaluation e = judge->evaluate(pairs);
+      correct.push_back(e.correct);
+      judged.push_back(e.correct + e.wrong);
+    }
+  }
+  std::printf("\n%-22s", "Number of matches");
+  for (const std::size_t c : counts) std::printf(" %6zu", c);
+  if (judge) {
+    std::printf("\n%-22s", "Correct matches (%)");
+    for (std::size_t i = 0; i < counts.size(); ++i)
+      judged[i] ? std::printf(" %6.1f", 100.0 * double(correct[i]) / double(judged[i])) : std::printf(" %6s", "-");
+    std::printf("\n%-22s", "Incorrect matches (%)");
+    for (std::size_t i = 0; i < counts.size(); ++i)
+      judged[i] ? std::printf(" %6.1f", 100.0 * double(judged[i] - correct[i]) / double(judged[i])) : std::printf(" %6s", "-");
+  }
+  std::printf("\n");
+  if (!tools::flush_stdout(error)) tools::fail_run(error);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  program_name() = "markloop-replay";
+  try {
+    return replay_main(argc, argv);
+  } catch (const std::bad_alloc&) {
+    // Inputs and the database are checked against their limits first: this
+    // is what no check foresaw (another program took the memory meanwhile).
+    fail("out of memory: the input or the database (--landmark-capacity, --sequence-capacity) is "
+         "too large for the memory available");
+  }
+}

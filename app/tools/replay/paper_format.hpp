@@ -1,0 +1,74 @@
+// Readers for the file formats of the paper's published dataset and of the
+// simulator's ground truth. Every error names the file and line.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "app/engine/types.hpp"
+
+namespace markloop::replay {
+
+// One record of road_marking_centroids_3Dposition.txt: a detection in frame
+// `frame` at (x, y, z) in camera-style world axes (x right, y down, z ahead).
+struct MarkingRecord {
+  std::int32_t frame = 0;
+  float x = 0.0f;
+  float y = 0.0f;
+  float z = 0.0f;
+  std::string label;
+  int line = 0;
+};
+
+// Interns label names into the engine's opaque label ids.
+class LabelTable {
+ public:
+  Label intern(const std::string& name);
+  const std::string& name(Label label) const { return names_.at(label); }
+  std::size_t size() const { return names_.size(); }
+
+ private:
+  std::vector<std::string> names_;
+  std::unordered_map<std::string, Label> ids_;
+};
+
+// Each file is read whole, so each has a limit, checked before it is read:
+// several times the paper's whole dataset (its 200 drives in one file).
+inline constexpr std::size_t kMaxMarkingsBytes = std::size_t{256} << 20;
+inline constexpr std::size_t kMaxPosesBytes = std::size_t{256} << 20;  // poses and truth
+// A pose coordinate farther from the origin than this (metres) is no pose of
+// a drive (a file in other units, or garbage); refused, so that distances
+// and grid cells computed from poses stay finite.
+inline constexpr double kMaxPoseCoordinate_m = 1e8;
+// frames.csv's yaw may be unwrapped (turns add up), not without end; its
+// time is seconds since the start, within a century of driving.
+inline constexpr double kMaxYaw_rad = 1e6;
+inline constexpr double kMaxTime_s = 3.2e9;
+// Labels are class names: a longer one is no label (a line gone wrong).
+inline constexpr std::size_t kMaxLabelLength = 64;
+
+// Each loader returns false and sets `error` ("FILE:LINE: what") on bad input
+// ("FILE: what" when the file cannot be read, is a directory or is too big).
+bool load_markings(const std::string& path, std::vector<MarkingRecord>& records,
+                   std::string& error);
+// One 3x4 row-major [R|t] camera pose per line (KITTI odometry), line i for
+// frame i, converted to the ground frame (x ahead = z, y left = -x).
+bool load_kitti_poses(const std::string& path, std::vector<Pose2>& poses, std::string& error);
+// Ground truth per frame: the simulator's frames.csv (header frame,t,x,y,yaw)
+// or KITTI poses. `times`, when given, receives frames.csv's t per frame
+// (left empty for KITTI poses, which carry no time).
+bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error,
+                std::vector<double>* times = nullptr);
+// The simulator's frames.csv only (its header required): poses and times.
+bool load_frames_csv(const std::string& path, std::vector<Pose2>& poses, std::vector<double>& times,
+                     std::string& error);
+
+// The paper's camera-style axes to the engine's ground frame.
+inline Observation to_ground(const MarkingRecord& r, Label label) {
+  return {label, r.z, -r.x};
+}
+
+}  // namespace markloop::replay
