@@ -40,9 +40,7 @@ class Crc8J1850 {
   constexpr void add(std::span<const std::uint8_t> bytes) noexcept {
     for (const std::uint8_t byte : bytes) add(byte);
   }
-  constexpr std::uint8_t value() const noexcept {
-    return static_cast<std::uint8_t>(state_ ^ kCrc8FinalXor);
-  }
+  constexpr std::uint8_t value() const noexcept { return static_cast<std::uint8_t>(state_ ^ kCrc8FinalXor); }
 
  private:
   std::uint8_t state_ = kCrc8Initial;

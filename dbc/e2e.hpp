@@ -21,22 +21,28 @@ namespace markloop::dbc {
 inline constexpr std::uint8_t kAliveCounterModulo = 16;
 
 enum class DecodeError : std::uint8_t {
-  None,          // valid: the output was written
-  WrongLength,   // payload length differs from the message's DLC
-  BadCrc,        // CRC mismatch (corrupted, or wrong data id / CAN id)
-  BadCounter,    // alive counter repeated or skipped (see E2eReceiverState)
-  OutOfRange,    // a raw value outside the DBC's [min|max] or value table
-  UnknownPage,   // multiplexor value that the DBC does not define
+  None,         // valid: the output was written
+  WrongLength,  // payload length differs from the message's DLC
+  BadCrc,       // CRC mismatch (corrupted, or wrong data id / CAN id)
+  BadCounter,   // alive counter repeated or skipped (see E2eReceiverState)
+  OutOfRange,   // a raw value outside the DBC's [min|max] or value table
+  UnknownPage,  // multiplexor value that the DBC does not define
 };
 
 constexpr std::string_view to_string(DecodeError error) noexcept {
   switch (error) {
-    case DecodeError::None: return "None";
-    case DecodeError::WrongLength: return "WrongLength";
-    case DecodeError::BadCrc: return "BadCrc";
-    case DecodeError::BadCounter: return "BadCounter";
-    case DecodeError::OutOfRange: return "OutOfRange";
-    case DecodeError::UnknownPage: return "UnknownPage";
+    case DecodeError::None:
+      return "None";
+    case DecodeError::WrongLength:
+      return "WrongLength";
+    case DecodeError::BadCrc:
+      return "BadCrc";
+    case DecodeError::BadCounter:
+      return "BadCounter";
+    case DecodeError::OutOfRange:
+      return "OutOfRange";
+    case DecodeError::UnknownPage:
+      return "UnknownPage";
   }
   return "?";
 }

@@ -55,8 +55,12 @@ class LoopDetectionAssembler {
         into.match_frame = page.match_frame;
         into.match_score = page.match_score;
         break;
-      case LoopPage::QueryTime: into.query_time_s = page.query_time_s; break;
-      case LoopPage::MatchTime: into.match_time_s = page.match_time_s; break;
+      case LoopPage::QueryTime:
+        into.query_time_s = page.query_time_s;
+        break;
+      case LoopPage::MatchTime:
+        into.match_time_s = page.match_time_s;
+        break;
       case LoopPage::Translation:
         into.pose_dx_m = page.pose_dx_m;
         into.pose_dy_m = page.pose_dy_m;

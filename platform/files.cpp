@@ -49,8 +49,7 @@ std::error_code read_file_bounded(const char* path, std::size_t max_bytes, std::
   if (auto ec = open_not_directory(path, file)) return ec;
   struct stat info {};
   if (::fstat(file.get(), &info) != 0) return last_error();
-  if (S_ISREG(info.st_mode) && static_cast<std::uint64_t>(info.st_size) > max_bytes)
-    return make_error(EFBIG);
+  if (S_ISREG(info.st_mode) && static_cast<std::uint64_t>(info.st_size) > max_bytes) return make_error(EFBIG);
   std::array<char, 1 << 14> chunk{};
   for (;;) {
     const IoResult r = sys_read(file.get(), chunk.data(), chunk.size());
@@ -66,7 +65,8 @@ std::error_code read_file_bounded(const char* path, std::size_t max_bytes, std::
 
 std::error_code refuse_pipe(const char* path) noexcept {
   struct stat info {};
-  if (::stat(path, &info) == 0 && (S_ISFIFO(info.st_mode) || S_ISSOCK(info.st_mode))) return make_error(ESPIPE);
+  if (::stat(path, &info) == 0 && (S_ISFIFO(info.st_mode) || S_ISSOCK(info.st_mode)))
+    return make_error(ESPIPE);
   return {};
 }
 
@@ -78,7 +78,8 @@ std::string describe_read_error(const std::string& path, std::error_code ec, std
     return path + ": is a directory, not " + what;
   if (ec.value() == ESPIPE && ec.category() == std::system_category())
     return path + ": is a pipe or socket, not " + what + " (it is read more than once: give a file)";
-  if (ec.value() == EIO && ec.category() == std::system_category()) return path + ": read error: " + ec.message();
+  if (ec.value() == EIO && ec.category() == std::system_category())
+    return path + ": read error: " + ec.message();
   return path + ": cannot open: " + ec.message();
 }
 
@@ -209,8 +210,7 @@ std::error_code create_unique_file(char* path_template, unsigned mode, int& fd_o
 }
 
 std::error_code try_lock_exclusive(int fd) noexcept {
-  return retry_eintr([&] { return ::flock(fd, LOCK_EX | LOCK_NB); }) == 0 ? std::error_code{}
-                                                                          : last_error();
+  return retry_eintr([&] { return ::flock(fd, LOCK_EX | LOCK_NB); }) == 0 ? std::error_code{} : last_error();
 }
 
 std::uint64_t available_memory_bytes() noexcept {

@@ -25,7 +25,9 @@ namespace {
 
 using detail::retry_eintr;
 
-std::error_code result(int r) noexcept { return r < 0 ? last_error() : std::error_code{}; }
+std::error_code result(int r) noexcept {
+  return r < 0 ? last_error() : std::error_code{};
+}
 
 timespec to_timespec(std::chrono::nanoseconds t) noexcept {
   const auto ns = t.count() < 0 ? 0 : t.count();
@@ -63,7 +65,9 @@ std::error_code read_full(int fd, void* data, std::size_t size, std::size_t& got
   return {};
 }
 
-std::error_code sys_fsync(int fd) noexcept { return result(retry_eintr([&] { return ::fsync(fd); })); }
+std::error_code sys_fsync(int fd) noexcept {
+  return result(retry_eintr([&] { return ::fsync(fd); }));
+}
 
 std::error_code sys_rename(const char* from, const char* to) noexcept {
   return result(retry_eintr([&] { return ::rename(from, to); }));
@@ -143,7 +147,9 @@ void sleep_until(std::chrono::nanoseconds deadline) noexcept {
   }
 }
 
-std::error_code lock_all_memory() noexcept { return result(::mlockall(MCL_CURRENT | MCL_FUTURE)); }
+std::error_code lock_all_memory() noexcept {
+  return result(::mlockall(MCL_CURRENT | MCL_FUTURE));
+}
 
 std::error_code set_fifo_priority(int priority) noexcept {
   sched_param param{};
@@ -214,8 +220,7 @@ std::error_code SystemdNotifier::notify(std::string_view message) noexcept {
   sockaddr_un address{};
   address.sun_family = AF_UNIX;
   std::memcpy(address.sun_path, path_.data(), path_length_);
-  const auto address_length =
-      static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + path_length_);
+  const auto address_length = static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + path_length_);
   const ssize_t r = retry_eintr([&] {
     return ::sendto(fd_.get(), message.data(), message.size(), MSG_NOSIGNAL,
                     reinterpret_cast<const sockaddr*>(&address), address_length);

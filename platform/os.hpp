@@ -52,9 +52,9 @@ std::chrono::nanoseconds monotonic_now() noexcept;
 void sleep_until(std::chrono::nanoseconds deadline) noexcept;
 
 // --- real time -----------------------------------------------------------------
-std::error_code lock_all_memory() noexcept;                 // mlockall(MCL_CURRENT|MCL_FUTURE)
+std::error_code lock_all_memory() noexcept;                // mlockall(MCL_CURRENT|MCL_FUTURE)
 std::error_code set_fifo_priority(int priority) noexcept;  // SCHED_FIFO for this thread
-std::error_code pin_to_cpu(int cpu) noexcept;               // affinity of this thread
+std::error_code pin_to_cpu(int cpu) noexcept;              // affinity of this thread
 // Resident set size of this process in bytes (from /proc/self/statm): all,
 // and anonymous only (heap, stacks, mappings: what a leak would grow; the
 // rest is program text and files, paged in as code paths are first taken).

@@ -1,8 +1,8 @@
 #include "platform/syscall.hpp"
 #include "platform/retry_eintr.hpp"
 
-#include <poll.h>
 #include <fcntl.h>
+#include <poll.h>
 #include <sys/ioctl.h>
 #include <sys/mman.h>
 #include <sys/socket.h>
@@ -31,7 +31,9 @@ IoResult io_result(ssize_t r) noexcept {
 
 }  // namespace
 
-std::error_code last_error() noexcept { return make_error(errno); }
+std::error_code last_error() noexcept {
+  return make_error(errno);
+}
 
 std::error_code sys_socket(int domain, int type, int protocol, int& fd_out) noexcept {
   fd_out = retry_eintr([&] { return ::socket(domain, type, protocol); });
@@ -43,8 +45,7 @@ std::error_code sys_bind(int fd, const sockaddr* addr, unsigned len) noexcept {
   return r < 0 ? last_error() : std::error_code{};
 }
 
-std::error_code sys_setsockopt(int fd, int level, int name, const void* value,
-                               unsigned len) noexcept {
+std::error_code sys_setsockopt(int fd, int level, int name, const void* value, unsigned len) noexcept {
   const int r = retry_eintr([&] { return ::setsockopt(fd, level, name, value, len); });
   return r < 0 ? last_error() : std::error_code{};
 }

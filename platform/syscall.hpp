@@ -31,8 +31,7 @@ struct IoResult {
 
 std::error_code sys_socket(int domain, int type, int protocol, int& fd_out) noexcept;
 std::error_code sys_bind(int fd, const sockaddr* addr, unsigned len) noexcept;
-std::error_code sys_setsockopt(int fd, int level, int name, const void* value,
-                               unsigned len) noexcept;
+std::error_code sys_setsockopt(int fd, int level, int name, const void* value, unsigned len) noexcept;
 std::error_code sys_ioctl(int fd, unsigned long request, void* arg) noexcept;
 // open(2) of a path (device nodes); the new descriptor goes to fd_out.
 std::error_code sys_open(const char* path, int flags, int& fd_out) noexcept;
@@ -45,13 +44,11 @@ IoResult sys_read(int fd, void* data, std::size_t size) noexcept;
 
 // poll() on an array; returns the number of ready descriptors in `ready`
 // (0 on timeout). The remaining timeout is recomputed after EINTR.
-std::error_code sys_poll(pollfd* fds, unsigned count, std::chrono::milliseconds timeout,
-                         int& ready) noexcept;
+std::error_code sys_poll(pollfd* fds, unsigned count, std::chrono::milliseconds timeout, int& ready) noexcept;
 
 // True for the errno values that mean "try again later" on a non-blocking fd.
 inline bool is_would_block(const std::error_code& ec) noexcept {
-  return ec.category() == std::system_category() &&
-         (ec.value() == EAGAIN || ec.value() == EWOULDBLOCK);
+  return ec.category() == std::system_category() && (ec.value() == EAGAIN || ec.value() == EWOULDBLOCK);
 }
 
 }  // namespace markloop::platform

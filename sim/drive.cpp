@@ -10,14 +10,14 @@ constexpr double kDegToRad = std::numbers::pi / 180.0;
 // A wrong label is one of the symbol classes (arrows, words, numbers, bike,
 // diamond: the first 14); stop lines and crosswalks are not mistaken for them.
 constexpr std::size_t kConfusableClasses = 14;
-}
+}  // namespace
 
 Drive::Drive(const Scenario& scenario, const DriveConfig& config, std::uint64_t seed)
     : scenario_(scenario),
       config_(config),
       rng_(seed),
-      frame_count_(static_cast<std::size_t>(scenario.road.length() * scenario.laps /
-                                            config.speed_mps * config.fps)),
+      frame_count_(
+          static_cast<std::size_t>(scenario.road.length() * scenario.laps / config.speed_mps * config.fps)),
       cell_size_(config.view_far_m + 5.0) {
   for (std::uint32_t i = 0; i < scenario.markings.size(); ++i)
     grid_[cell_key(cell_of(scenario.markings[i].x), cell_of(scenario.markings[i].y))].push_back(i);
@@ -29,7 +29,9 @@ std::int64_t Drive::cell_of(double coordinate) const {
   return static_cast<std::int64_t>(std::floor(coordinate / cell_size_));
 }
 
-std::int64_t Drive::cell_key(std::int64_t cx, std::int64_t cy) { return cx * 1000003 + cy; }
+std::int64_t Drive::cell_key(std::int64_t cx, std::int64_t cy) {
+  return cx * 1000003 + cy;
+}
 
 bool Drive::next(DriveFrame& out) {
   if (frame_ >= frame_count_) return false;
@@ -42,8 +44,7 @@ bool Drive::next(DriveFrame& out) {
   std::normal_distribution<double> yaw_noise(0.0, config_.yaw_rate_noise_dps * kDegToRad);
   if (frame_ > 0) {
     const double yaw_rate = wrap_angle(truth.yaw - previous_truth_.yaw) / dt;
-    const double measured_rate =
-        yaw_rate + config_.yaw_rate_bias_dps * kDegToRad + yaw_noise(rng_);
+    const double measured_rate = yaw_rate + config_.yaw_rate_bias_dps * kDegToRad + yaw_noise(rng_);
     const double travelled = std::hypot(truth.x - previous_truth_.x, truth.y - previous_truth_.y);
     const double measured_distance = travelled * (1.0 + config_.speed_scale_error);
     const double mid_yaw = estimate_.yaw + 0.5 * measured_rate * dt;
@@ -62,10 +63,9 @@ bool Drive::next(DriveFrame& out) {
   std::normal_distribution<double> gauss(0.0, 1.0);
   const auto observe = [&](double ahead, double left, Label label, std::uint32_t id) {
     const double sigma = config_.position_noise_m + config_.position_noise_per_m * ahead;
-    const Pose2 seen = compose(estimate_, Pose2{ahead + sigma * gauss(rng_),
-                                                left + sigma * gauss(rng_), 0.0});
-    if (unit(rng_) < config_.label_error_probability)
-      label = static_cast<Label>(rng_() % kConfusableClasses);
+    const Pose2 seen =
+        compose(estimate_, Pose2{ahead + sigma * gauss(rng_), left + sigma * gauss(rng_), 0.0});
+    if (unit(rng_) < config_.label_error_probability) label = static_cast<Label>(rng_() % kConfusableClasses);
     out.observations.push_back({label, static_cast<float>(seen.x), static_cast<float>(seen.y)});
     out.observed_marking_ids.push_back(id);
   };
@@ -92,8 +92,7 @@ bool Drive::next(DriveFrame& out) {
   }
   if (unit(rng_) < config_.false_positives_per_frame) {
     std::uniform_real_distribution<double> ahead(config_.view_near_m, config_.view_far_m);
-    std::uniform_real_distribution<double> left(-config_.view_half_width_m,
-                                                config_.view_half_width_m);
+    std::uniform_real_distribution<double> left(-config_.view_half_width_m, config_.view_half_width_m);
     observe(ahead(rng_), left(rng_), static_cast<Label>(rng_() % kConfusableClasses), UINT32_MAX);
   }
   ++frame_;

@@ -23,7 +23,7 @@ struct DriveConfig {
   // Perception errors.
   double detection_probability = 0.85;
   double label_error_probability = 0.03;
-  double position_noise_m = 0.05;       // plus position_noise_per_m per metre of range
+  double position_noise_m = 0.05;  // plus position_noise_per_m per metre of range
   double position_noise_per_m = 0.01;
   double false_positives_per_frame = 0.02;
   // Odometry errors (integrated into the estimated pose: slow drift).

@@ -11,19 +11,21 @@
 
 #include <linux/videodev2.h>
 
+#include "app/io/y4m.hpp"
 #include "app/tools/common/tool_files.hpp"
 #include "drivers/can/candump_log.hpp"
 #include "drivers/can/socketcan.hpp"
 #include "drivers/v4l2/v4l2_device.hpp"
 #include "drivers/v4l2/v4l2_output.hpp"
-#include "app/io/y4m.hpp"
 
 namespace markloop::sim {
 
 namespace {
 
 volatile std::sig_atomic_t g_stop = 0;
-void on_signal(int) { g_stop = 1; }
+void on_signal(int) {
+  g_stop = 1;
+}
 
 std::int64_t monotonic_ns() {
   timespec ts{};
@@ -71,12 +73,10 @@ bool load_odometry(const std::string& path, std::vector<can::CanFrame>& frames, 
 // HDMI-like outputs take only frames of their DV timings' size: select the
 // output's timings that match the drive's frame size (vivid's HDMI output
 // offers 640x480, 1280x720, ...). Outputs without DV timings are left alone.
-std::error_code select_dv_timings(const LiveOptions& options, std::uint32_t width,
-                                  std::uint32_t height) {
+std::error_code select_dv_timings(const LiveOptions& options, std::uint32_t width, std::uint32_t height) {
   v4l2::V4l2Device dev;
   v4l2::DeviceInfo info;
-  if (auto ec = dev.open(options.video_device.c_str(), v4l2::V4l2Device::Direction::Output, info))
-    return ec;
+  if (auto ec = dev.open(options.video_device.c_str(), v4l2::V4l2Device::Direction::Output, info)) return ec;
   if (options.video_output >= 0)
     if (auto ec = dev.select_output(options.video_output)) return ec;
   for (std::uint32_t index = 0; index < 64; ++index) {
@@ -100,8 +100,7 @@ bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& e
     return false;
   }
   std::vector<can::CanFrame> odometry;  // all of it, read before the clock starts
-  if (!options.can_interface.empty() &&
-      !load_odometry((dir / "odometry.log").string(), odometry, error))
+  if (!options.can_interface.empty() && !load_odometry((dir / "odometry.log").string(), odometry, error))
     return false;
 
   // The bus first: its name is checked before the video device is set up.
@@ -131,14 +130,14 @@ bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& e
     return false;
   }
   if (output.format().width != config.width || output.format().height != config.height) {
-    error = options.video_device + ": the output takes " + std::to_string(output.format().width) +
-            "x" + std::to_string(output.format().height) + ", the drive is " +
-            std::to_string(config.width) + "x" + std::to_string(config.height) +
+    error = options.video_device + ": the output takes " + std::to_string(output.format().width) + "x" +
+            std::to_string(output.format().height) + ", the drive is " + std::to_string(config.width) + "x" +
+            std::to_string(config.height) +
             " (record it with a --camera of that size, or select another output)";
     return false;
   }
 
-  struct sigaction action{};
+  struct sigaction action {};
   action.sa_handler = on_signal;
   sigemptyset(&action.sa_mask);
   sigaction(SIGINT, &action, nullptr);
@@ -154,9 +153,9 @@ bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& e
   const std::size_t limit = options.max_frames;
   while (g_stop == 0) {
     const bool frames_left = frame_ready && (limit == 0 || frame < limit);
-    const bool can_left = next_can < odometry.size() &&
-                          (frames_left || odometry[next_can].timestamp_ns <=
-                                              static_cast<std::int64_t>(frame) * frame_period_ns);
+    const bool can_left =
+        next_can < odometry.size() && (frames_left || odometry[next_can].timestamp_ns <=
+                                                          static_cast<std::int64_t>(frame) * frame_period_ns);
     if (!frames_left && !can_left) break;
     const std::int64_t frame_due = static_cast<std::int64_t>(frame) * frame_period_ns;
     const bool send_frame = frames_left && (!can_left || frame_due <= odometry[next_can].timestamp_ns);

@@ -16,23 +16,23 @@
 namespace markloop::sim {
 
 struct LiveOptions {
-  std::string drive_dir;        // frames.y4m and odometry.log
-  std::string video_device;     // e.g. /dev/video1 (vivid output)
-  int video_output = -1;        // VIDIOC_S_OUTPUT index; -1 keeps the current one
+  std::string drive_dir;     // frames.y4m and odometry.log
+  std::string video_device;  // e.g. /dev/video1 (vivid output)
+  int video_output = -1;     // VIDIOC_S_OUTPUT index; -1 keeps the current one
   v4l2::PixelFormat format = v4l2::PixelFormat::Grey;
-  std::string can_interface;    // e.g. vcan0; empty: no CAN
-  std::size_t max_frames = 0;   // 0: the whole drive
+  std::string can_interface;   // e.g. vcan0; empty: no CAN
+  std::size_t max_frames = 0;  // 0: the whole drive
   bool progress = true;
 };
 
 struct LiveCounters {
   std::uint64_t frames_sent = 0;
-  std::uint64_t frame_errors = 0;   // V4L2 refused or timed out
+  std::uint64_t frame_errors = 0;  // V4L2 refused or timed out
   std::uint64_t can_sent = 0;
   std::uint64_t can_errors = 0;
-  std::uint64_t late_events = 0;    // sent more than 5 ms after their deadline
+  std::uint64_t late_events = 0;  // sent more than 5 ms after their deadline
   double max_lateness_ms = 0.0;
-  bool interrupted = false;         // SIGINT/SIGTERM
+  bool interrupted = false;  // SIGINT/SIGTERM
 };
 
 // The odometry log is read whole, up to this limit (checked first): more

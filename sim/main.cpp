@@ -9,8 +9,8 @@
 #include <string_view>
 
 #include "app/common/cli.hpp"
-#include "app/tools/common/tool_files.hpp"
 #include "app/perception/camera_model.hpp"
+#include "app/tools/common/tool_files.hpp"
 #include "sim/live.hpp"
 #include "sim/recorder.hpp"
 #include "sim/route.hpp"
@@ -22,7 +22,8 @@ using namespace markloop;
 using namespace markloop::sim;
 using namespace markloop::cli;
 
-constexpr const char* kUsage = R"(usage: markloop-sim drive (--scenario NAME | --route FILE) --out DIR [options]
+constexpr const char* kUsage =
+    R"(usage: markloop-sim drive (--scenario NAME | --route FILE) --out DIR [options]
        markloop-sim training-set --out DIR [--seed N] [--frames N] [--camera FILE]
        markloop-sim live --from DIR --video DEVICE [--can IF] [options]
        markloop-sim list
@@ -131,26 +132,44 @@ int drive(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       return 0;
     }
-    if (arg == "--no-shadows") { options.conditions.shadows = false; continue; }
-    if (arg == "--no-render") { options.render = false; continue; }
-    const char* value =
-        option_value(argc, argv, i,
-                     {"--scenario", "--route", "--out", "--seed", "--speed", "--fps", "--laps", "--camera",
-                      "--max-frames", "--occluders", "--noise", "--wear", "--drift", "--light",
-                      "--class-weights", "--cover-lens"});
-    if (arg == "--scenario") scenario_name = value;
-    else if (arg == "--route") route_file = value;
-    else if (arg == "--out") out_dir = value;
-    else if (arg == "--seed") options.seed = parse_whole(arg, value);
-    else if (arg == "--speed") speed = parse_number(arg, value);
-    else if (arg == "--fps") options.drive.fps = parse_number(arg, value);
-    else if (arg == "--laps") laps = parse_whole(arg, value);
-    else if (arg == "--camera") camera_file = value;
-    else if (arg == "--max-frames") options.max_frames = parse_whole(arg, value);
-    else if (arg == "--occluders") options.conditions.occluder_probability = parse_number(arg, value);
-    else if (arg == "--noise") options.conditions.noise_sigma = parse_number(arg, value);
-    else if (arg == "--wear") options.conditions.paint_wear = parse_number(arg, value);
-    else if (arg == "--drift") drift = parse_number(arg, value);
+    if (arg == "--no-shadows") {
+      options.conditions.shadows = false;
+      continue;
+    }
+    if (arg == "--no-render") {
+      options.render = false;
+      continue;
+    }
+    const char* value = option_value(
+        argc, argv, i,
+        {"--scenario", "--route", "--out", "--seed", "--speed", "--fps", "--laps", "--camera", "--max-frames",
+         "--occluders", "--noise", "--wear", "--drift", "--light", "--class-weights", "--cover-lens"});
+    if (arg == "--scenario")
+      scenario_name = value;
+    else if (arg == "--route")
+      route_file = value;
+    else if (arg == "--out")
+      out_dir = value;
+    else if (arg == "--seed")
+      options.seed = parse_whole(arg, value);
+    else if (arg == "--speed")
+      speed = parse_number(arg, value);
+    else if (arg == "--fps")
+      options.drive.fps = parse_number(arg, value);
+    else if (arg == "--laps")
+      laps = parse_whole(arg, value);
+    else if (arg == "--camera")
+      camera_file = value;
+    else if (arg == "--max-frames")
+      options.max_frames = parse_whole(arg, value);
+    else if (arg == "--occluders")
+      options.conditions.occluder_probability = parse_number(arg, value);
+    else if (arg == "--noise")
+      options.conditions.noise_sigma = parse_number(arg, value);
+    else if (arg == "--wear")
+      options.conditions.paint_wear = parse_number(arg, value);
+    else if (arg == "--drift")
+      drift = parse_number(arg, value);
     else if (arg == "--cover-lens") {
       const std::string span = value;
       const std::size_t colon = span.find(':');
@@ -214,10 +233,11 @@ int drive(int argc, char** argv) {
   RecordSummary summary;
   std::string error;
   if (!record_drive(*scenario, camera, options, summary, error)) tools::fail_run(error);
-  std::printf("markloop-sim: %s (%s): %zu frames, %zu markings in the world, %zu detections, "
-              "%zu odometry frames",
-              scenario->name.c_str(), scenario->description.c_str(), summary.frames,
-              scenario->markings.size(), summary.detections, summary.odometry_messages);
+  std::printf(
+      "markloop-sim: %s (%s): %zu frames, %zu markings in the world, %zu detections, "
+      "%zu odometry frames",
+      scenario->name.c_str(), scenario->description.c_str(), summary.frames, scenario->markings.size(),
+      summary.detections, summary.odometry_messages);
   if (options.render && summary.frames > 0)
     std::printf(", %zu visible markings, %.1f ms per rendered frame", summary.visible_rows,
                 1000.0 * summary.render_seconds / static_cast<double>(summary.frames));
@@ -235,10 +255,14 @@ int training_set(int argc, char** argv) {
       return 0;
     }
     const char* value = option_value(argc, argv, i, {"--out", "--seed", "--frames", "--camera"});
-    if (arg == "--out") options.out_dir = value;
-    else if (arg == "--seed") options.seed = parse_whole(arg, value);
-    else if (arg == "--frames") options.frames = parse_whole(arg, value);
-    else if (arg == "--camera") camera_file = value;
+    if (arg == "--out")
+      options.out_dir = value;
+    else if (arg == "--seed")
+      options.seed = parse_whole(arg, value);
+    else if (arg == "--frames")
+      options.frames = parse_whole(arg, value);
+    else if (arg == "--camera")
+      camera_file = value;
   }
   if (options.out_dir.empty()) fail("--out DIR is required (see --help)");
   check_out_dir(options.out_dir);
@@ -247,8 +271,8 @@ int training_set(int argc, char** argv) {
   std::size_t annotations = 0;
   std::string error;
   if (!record_training_set(camera, options, annotations, error)) tools::fail_run(error);
-  std::printf("markloop-sim: training set: %zu images, %zu annotated markings -> %s\n",
-              options.frames, annotations, options.out_dir.c_str());
+  std::printf("markloop-sim: training set: %zu images, %zu annotated markings -> %s\n", options.frames,
+              annotations, options.out_dir.c_str());
   return 0;
 }
 
@@ -262,16 +286,24 @@ int live(int argc, char** argv) {
     }
     const char* value =
         option_value(argc, argv, i, {"--from", "--video", "--output", "--can", "--max-frames", "--format"});
-    if (arg == "--from") options.drive_dir = value;
-    else if (arg == "--video") options.video_device = value;
-    else if (arg == "--output") options.video_output = static_cast<int>(parse_whole(arg, value));
-    else if (arg == "--can") options.can_interface = value;
-    else if (arg == "--max-frames") options.max_frames = parse_whole(arg, value);
+    if (arg == "--from")
+      options.drive_dir = value;
+    else if (arg == "--video")
+      options.video_device = value;
+    else if (arg == "--output")
+      options.video_output = static_cast<int>(parse_whole(arg, value));
+    else if (arg == "--can")
+      options.can_interface = value;
+    else if (arg == "--max-frames")
+      options.max_frames = parse_whole(arg, value);
     else if (arg == "--format") {
       const std::string_view f = value;
-      if (f == "grey") options.format = v4l2::PixelFormat::Grey;
-      else if (f == "yuyv") options.format = v4l2::PixelFormat::Yuyv;
-      else fail(std::string("--format: unknown '") + value + "' (grey, yuyv)");
+      if (f == "grey")
+        options.format = v4l2::PixelFormat::Grey;
+      else if (f == "yuyv")
+        options.format = v4l2::PixelFormat::Yuyv;
+      else
+        fail(std::string("--format: unknown '") + value + "' (grey, yuyv)");
     }
   }
   if (options.drive_dir.empty()) fail("--from DIR is required (see --help)");
@@ -279,14 +311,15 @@ int live(int argc, char** argv) {
   LiveCounters counters;
   std::string error;
   if (!run_live(options, counters, error)) fail(error);
-  std::printf("markloop-sim: live: %llu frames sent (%llu failed), %llu CAN frames sent (%llu failed), "
-              "%llu events late by more than 5 ms, worst %.2f ms%s\n",
-              static_cast<unsigned long long>(counters.frames_sent),
-              static_cast<unsigned long long>(counters.frame_errors),
-              static_cast<unsigned long long>(counters.can_sent),
-              static_cast<unsigned long long>(counters.can_errors),
-              static_cast<unsigned long long>(counters.late_events), counters.max_lateness_ms,
-              counters.interrupted ? " (interrupted)" : "");
+  std::printf(
+      "markloop-sim: live: %llu frames sent (%llu failed), %llu CAN frames sent (%llu failed), "
+      "%llu events late by more than 5 ms, worst %.2f ms%s\n",
+      static_cast<unsigned long long>(counters.frames_sent),
+      static_cast<unsigned long long>(counters.frame_errors),
+      static_cast<unsigned long long>(counters.can_sent),
+      static_cast<unsigned long long>(counters.can_errors),
+      static_cast<unsigned long long>(counters.late_events), counters.max_lateness_ms,
+      counters.interrupted ? " (interrupted)" : "");
   return counters.frame_errors == 0 && counters.can_errors == 0 ? 0 : 1;
 }
 

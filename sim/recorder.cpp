@@ -2,19 +2,19 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <ctime>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <random>
 #include <vector>
 
-#include "app/tools/common/tool_files.hpp"
-#include "drivers/can/candump_log.hpp"
-#include "app/tools/common/still_image.hpp"
 #include "app/io/y4m.hpp"
+#include "app/tools/common/still_image.hpp"
+#include "app/tools/common/tool_files.hpp"
 #include "dbc/markloop_messages.hpp"
+#include "drivers/can/candump_log.hpp"
 #include "sim/noise.hpp"
 
 namespace markloop::sim {
@@ -69,8 +69,7 @@ void write_kitti_pose(std::FILE* f, const Pose2& p) {
   std::fprintf(f, "%.6f 0 %.6f %.4f 0 1 0 0 %.6f 0 %.6f %.4f\n", c, -s, -p.y, s, c, p.x);
 }
 
-void write_quad_row(std::FILE* f, std::size_t frame_or_image, const VisibleMarking& v,
-                    bool image_name) {
+void write_quad_row(std::FILE* f, std::size_t frame_or_image, const VisibleMarking& v, bool image_name) {
   if (image_name)
     std::fprintf(f, "%06zu.png,%s", frame_or_image, marking_class_names()[v.label].c_str());
   else
@@ -106,7 +105,8 @@ bool write_odometry(const Scenario& scenario, const RecordOptions& options, doub
     can::CanFrame frame;
     frame.id = dbc::VehicleOdometry::kId;
     frame.dlc = dbc::encode(m, counter.next(), std::span<std::uint8_t, 8>(frame.data));
-    frame.timestamp_ns = static_cast<std::int64_t>(j) * static_cast<std::int64_t>(std::llround(config.period_s * 1e9));
+    frame.timestamp_ns =
+        static_cast<std::int64_t>(j) * static_cast<std::int64_t>(std::llround(config.period_s * 1e9));
     const std::size_t n = can::format_candump_line(frame, "vcan0", line, sizeof line);
     if (n == 0 || std::fwrite(line, 1, n, log.get()) != n) {
       error = tools::write_error(path.string());
@@ -190,14 +190,13 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
                           ? std::min(scenario.days - 1, static_cast<int>(frame.estimate.t / lap_seconds))
                           : 0;
       const Conditions conditions = conditions_for_day(first_day, day);
-      const double car_s =
-          std::fmod(std::clamp(options.drive.speed_mps * frame.estimate.t, 0.0,
-                               scenario.road.length() * scenario.laps - 1e-6),
-                    scenario.road.length());
+      const double car_s = std::fmod(std::clamp(options.drive.speed_mps * frame.estimate.t, 0.0,
+                                                scenario.road.length() * scenario.laps - 1e-6),
+                                     scenario.road.length());
       occluders_at(conditions, frame.estimate.t, scenario.road, car_s, frame.truth, 3.5, occluders);
       const double start = thread_cpu_seconds();
-      const bool covered = frame.estimate.t >= options.lens_covered_from_s &&
-                           frame.estimate.t < options.lens_covered_until_s;
+      const bool covered =
+          frame.estimate.t >= options.lens_covered_from_s && frame.estimate.t < options.lens_covered_until_s;
       if (covered) {
         cv::RNG sensor(options.seed + k);
         sensor.fill(image, cv::RNG::NORMAL, 4.0, conditions.noise_sigma);
@@ -209,16 +208,15 @@ bool record_drive(const Scenario& scenario, const perception::CameraModel& camer
         error = video.error();
         return false;
       }
-      renderer->visible_markings(frame.truth, options.visible_near_m, options.visible_far_m,
-                                 occluders, seen);
+      renderer->visible_markings(frame.truth, options.visible_near_m, options.visible_far_m, occluders, seen);
       if (covered) seen.clear();
       for (const VisibleMarking& v : seen) write_quad_row(visible->get(), k, v, false);
       summary.visible_rows += seen.size();
     }
     ++summary.frames;
     if (options.progress && frames >= 50 && summary.frames * 10 >= next_report * frames) {
-      std::fprintf(stderr, "markloop-sim: %zu %% (%zu / %zu frames)\n", next_report * 10,
-                   summary.frames, frames);
+      std::fprintf(stderr, "markloop-sim: %zu %% (%zu / %zu frames)\n", next_report * 10, summary.frames,
+                   frames);
       ++next_report;
     }
   }
@@ -306,9 +304,10 @@ bool record_training_set(const perception::CameraModel& camera, const TrainingSe
   for (std::size_t k = 0; k < options.frames; ++k) {
     Conditions c;
     const double pick = unit(rng);
-    c.light = pick < 0.5 ? Illumination::kDay
-              : pick < 0.7 ? Illumination::kDusk
-              : pick < 0.85 ? Illumination::kNight : Illumination::kWetGlare;
+    c.light = pick < 0.5    ? Illumination::kDay
+              : pick < 0.7  ? Illumination::kDusk
+              : pick < 0.85 ? Illumination::kNight
+                            : Illumination::kWetGlare;
     c.paint_wear = 0.7 * unit(rng);
     c.shadows = unit(rng) < 0.6;
     c.occluder_probability = 0.3;

@@ -28,9 +28,9 @@ struct RecordOptions {
   std::uint64_t seed = 1;
   DriveConfig drive;
   OdometryConfig odometry;
-  Conditions conditions;       // the first day's; conditions.seed is derived from `seed`
-  bool render = true;          // frames.y4m and visible.csv
-  std::size_t max_frames = 0;  // 0 = the whole drive
+  Conditions conditions;        // the first day's; conditions.seed is derived from `seed`
+  bool render = true;           // frames.y4m and visible.csv
+  std::size_t max_frames = 0;   // 0 = the whole drive
   double visible_near_m = 3.0;  // visible.csv: centre this far ahead ...
   double visible_far_m = 25.0;  // ... up to this
   // Frames from lens_covered_from_s until lens_covered_until_s (seconds of
@@ -38,14 +38,14 @@ struct RecordOptions {
   // marking visible (the ECU's blind camera, FaultCameraBlind).
   double lens_covered_from_s = 0.0;
   double lens_covered_until_s = 0.0;
-  bool progress = true;        // every 10 % on stderr
+  bool progress = true;  // every 10 % on stderr
 };
 
 struct RecordSummary {
   std::size_t frames = 0;
   std::size_t odometry_messages = 0;
   std::size_t visible_rows = 0;
-  std::size_t detections = 0;  // legacy observation records
+  std::size_t detections = 0;   // legacy observation records
   double render_seconds = 0.0;  // CPU time spent rendering frames
 };
 

@@ -72,7 +72,9 @@ struct Canvas {
   Canvas(double l, double w, double t)
       : image(std::max(1, static_cast<int>(std::lround(l / t))),
               std::max(1, static_cast<int>(std::lround(w / t))), CV_8U, cv::Scalar(0)),
-        length(l), width(w), texel(t) {}
+        length(l),
+        width(w),
+        texel(t) {}
   // (along, left) metres from the centre -> canvas point with 4 fractional bits.
   cv::Point at(double a, double b) const {
     return {static_cast<int>(std::lround((width / 2 - b) / texel * 16)),
@@ -89,8 +91,10 @@ struct Canvas {
     const double ux = dx / len, uy = dy / len, nx = -uy, ny = ux;
     const Vec2 base{to.x - ux * head_length, to.y - uy * head_length};
     const double s = shaft_width / 2, h = head_width / 2;
-    polygon({{from.x + nx * s, from.y + ny * s}, {base.x + nx * s + ux * 0.02, base.y + ny * s + uy * 0.02},
-             {base.x - nx * s + ux * 0.02, base.y - ny * s + uy * 0.02}, {from.x - nx * s, from.y - ny * s}});
+    polygon({{from.x + nx * s, from.y + ny * s},
+             {base.x + nx * s + ux * 0.02, base.y + ny * s + uy * 0.02},
+             {base.x - nx * s + ux * 0.02, base.y - ny * s + uy * 0.02},
+             {from.x - nx * s, from.y - ny * s}});
     polygon({{base.x + nx * h, base.y + ny * h}, to, {base.x - nx * h, base.y - ny * h}});
   }
   void bar(Vec2 from, Vec2 to, double w) { arrow(from, {to.x + 1e-3, to.y}, w, 0.0, 0.0); }
@@ -105,8 +109,7 @@ cv::Mat road_text(const char* text, const Canvas& canvas) {
   const int thickness = 9;
   const cv::Size size = cv::getTextSize(text, font, scale, thickness, &baseline);
   cv::Mat glyphs(size.height + baseline + 20, size.width + 20, CV_8U, cv::Scalar(0));
-  cv::putText(glyphs, text, {10, size.height + 10}, font, scale, cv::Scalar(255), thickness,
-              cv::LINE_AA);
+  cv::putText(glyphs, text, {10, size.height + 10}, font, scale, cv::Scalar(255), thickness, cv::LINE_AA);
   std::vector<cv::Point> ink;
   cv::findNonZero(glyphs, ink);
   const cv::Rect tight = cv::boundingRect(ink);
@@ -123,7 +126,7 @@ cv::Mat draw_class(Label label, bool bike_word, double length, double width, dou
     case 0:  // forward
       c.arrow({-l, 0}, {l, 0}, 0.3, 2.2, 0.9);
       break;
-    case 1:  // left turn, as US streets paint it: a shaft on the right that bends at
+    case 1:    // left turn, as US streets paint it: a shaft on the right that bends at
     case 2: {  // its far end into an arm across the lane, the head pointing left
       const double m = label == 1 ? 1.0 : -1.0;  // the arm's side: +1 left
       const double shaft = -m * (w - 0.35);
@@ -132,7 +135,7 @@ cv::Mat draw_class(Label label, bool bike_word, double length, double width, dou
       c.arrow({l - 0.5, shaft + 0.45 * m}, {l - 0.45, m * w}, 0.3, 0.7, 0.8);
       break;
     }
-    case 3:  // forward & left, as US streets paint it: a short through arrow, and
+    case 3:    // forward & left, as US streets paint it: a short through arrow, and
     case 4: {  // an arm that leaves its shaft low and bends to the side, its head across
       const double m = label == 3 ? 1.0 : -1.0;  // the arm's side: +1 left
       const double shaft = -m * (w - 0.4);
@@ -141,9 +144,15 @@ cv::Mat draw_class(Label label, bool bike_word, double length, double width, dou
       c.arrow({-l + 0.75, shaft + 0.45 * m}, {-l + 0.8, m * w}, 0.3, 0.6, 0.7);
       break;
     }
-    case 5: c.image = road_text("STOP", c); break;
-    case 6: c.image = road_text("PED", c); break;
-    case 7: c.image = road_text("XING", c); break;
+    case 5:
+      c.image = road_text("STOP", c);
+      break;
+    case 6:
+      c.image = road_text("PED", c);
+      break;
+    case 7:
+      c.image = road_text("XING", c);
+      break;
     case 8: {
       if (bike_word) {  // the word a bike lane carries, as in the real images
         c.image = road_text("BIKE", c);
@@ -175,16 +184,21 @@ cv::Mat draw_class(Label label, bool bike_word, double length, double width, dou
       const int row0 = static_cast<int>(std::lround((l - r_length / 2) / texel));
       for (const double left : {r_inner + r_width, -r_inner}) {  // the letter's left edge
         const int col0 = static_cast<int>(std::lround((w - left) / texel));
-        if (row0 < 0 || col0 < 0 || row0 + rows > c.image.rows || col0 + cols > c.image.cols)
-          continue;
+        if (row0 < 0 || col0 < 0 || row0 + rows > c.image.rows || col0 + cols > c.image.cols) continue;
         cv::Mat area = c.image(cv::Rect(col0, row0, cols, rows));
         cv::max(area, r, area);
       }
       break;
     }
-    case 10: c.image = road_text("25", c); break;
-    case 11: c.image = road_text("35", c); break;
-    case 12: c.image = road_text("40", c); break;
+    case 10:
+      c.image = road_text("25", c);
+      break;
+    case 11:
+      c.image = road_text("35", c);
+      break;
+    case 12:
+      c.image = road_text("40", c);
+      break;
     case 13: {  // diamond outline
       const double t = 0.15;
       c.bar({-l + 0.1, 0}, {0, w - t}, t);
@@ -193,12 +207,16 @@ cv::Mat draw_class(Label label, bool bike_word, double length, double width, dou
       c.bar({0, -w + t}, {-l + 0.1, 0}, t);
       break;
     }
-    case 14: c.image.setTo(cv::Scalar(255)); break;  // stop line
+    case 14:
+      c.image.setTo(cv::Scalar(255));
+      break;  // stop line
     case 15:  // crosswalk: 0.5 m stripes every metre across the road
       for (double b = -w + 0.25; b + 0.25 <= w + 1e-6; b += 1.0)
         c.polygon({{-l, b + 0.25}, {l, b + 0.25}, {l, b - 0.25}, {-l, b - 0.25}});
       break;
-    default: c.image.setTo(cv::Scalar(255)); break;
+    default:
+      c.image.setTo(cv::Scalar(255));
+      break;
   }
   cv::Mat f;
   c.image.convertTo(f, CV_32F, 1.0 / 255.0);
@@ -210,10 +228,14 @@ struct Light {
 };
 Light light_of(Illumination l) {
   switch (l) {
-    case Illumination::kDay: return {1.0F, 0.62F, 0.86F, 350.0F};
-    case Illumination::kDusk: return {0.42F, 0.16F, 0.42F, 160.0F};
-    case Illumination::kNight: return {0.0F, 0.02F, 0.04F, 60.0F};
-    case Illumination::kWetGlare: return {0.9F, 0.7F, 0.98F, 220.0F};
+    case Illumination::kDay:
+      return {1.0F, 0.62F, 0.86F, 350.0F};
+    case Illumination::kDusk:
+      return {0.42F, 0.16F, 0.42F, 160.0F};
+    case Illumination::kNight:
+      return {0.0F, 0.02F, 0.04F, 60.0F};
+    case Illumination::kWetGlare:
+      return {0.9F, 0.7F, 0.98F, 220.0F};
   }
   return {1.0F, 0.6F, 0.8F, 300.0F};
 }
@@ -230,10 +252,14 @@ std::optional<Illumination> illumination_from_name(std::string_view name) {
 
 std::string_view illumination_name(Illumination light) {
   switch (light) {
-    case Illumination::kDay: return "day";
-    case Illumination::kDusk: return "dusk";
-    case Illumination::kNight: return "night";
-    case Illumination::kWetGlare: return "wet-glare";
+    case Illumination::kDay:
+      return "day";
+    case Illumination::kDusk:
+      return "dusk";
+    case Illumination::kNight:
+      return "night";
+    case Illumination::kWetGlare:
+      return "wet-glare";
   }
   return "?";
 }
@@ -274,8 +300,7 @@ Renderer::Renderer(const perception::CameraModel& camera, const Scenario& scenar
                  static_cast<std::int64_t>(std::floor(y / cell_m_)), 0);
   };
   for (std::uint32_t i = 0; i < scenario_.strips.size(); ++i)
-    strip_cells_[static_cast<std::int64_t>(key(scenario_.strips[i].x, scenario_.strips[i].y))]
-        .push_back(i);
+    strip_cells_[static_cast<std::int64_t>(key(scenario_.strips[i].x, scenario_.strips[i].y))].push_back(i);
   for (std::uint32_t i = 0; i < scenario_.markings.size(); ++i)
     marking_cells_[static_cast<std::int64_t>(key(scenario_.markings[i].x, scenario_.markings[i].y))]
         .push_back(i);
@@ -320,8 +345,8 @@ void Renderer::build_pixel_table() {
       const std::size_t i = static_cast<std::size_t>(r) * width_ + c;
       if (std::isnan(ground_x_[i])) continue;
       float fx = 0.0F, fy = 0.0F;
-      for (const std::size_t j : {r + 1 < height_ ? i + width_ : i - width_,
-                                  c + 1 < width_ ? i + 1 : i - 1}) {
+      for (const std::size_t j :
+           {r + 1 < height_ ? i + width_ : i - width_, c + 1 < width_ ? i + 1 : i - 1}) {
         if (j >= ground_x_.size() || std::isnan(ground_x_[j])) continue;
         fx = std::max(fx, std::abs(ground_x_[j] - ground_x_[i]));
         fy = std::max(fy, std::abs(ground_y_[j] - ground_y_[i]));
@@ -355,8 +380,7 @@ void Renderer::build_templates() {
 }
 
 template <typename Visit>
-void Renderer::for_each_near(double x, double y, double radius, bool markings,
-                             Visit&& visit) const {
+void Renderer::for_each_near(double x, double y, double radius, bool markings, Visit&& visit) const {
   const auto& cells = markings ? marking_cells_ : strip_cells_;
   const auto c0x = static_cast<std::int64_t>(std::floor((x - radius) / cell_m_));
   const auto c1x = static_cast<std::int64_t>(std::floor((x + radius) / cell_m_));
@@ -370,8 +394,7 @@ void Renderer::for_each_near(double x, double y, double radius, bool markings,
     }
 }
 
-bool Renderer::image_box(const Pose2& local, double half_length, double half_width,
-                         cv::Rect& box) const {
+bool Renderer::image_box(const Pose2& local, double half_length, double half_width, cv::Rect& box) const {
   const double c = std::cos(local.yaw), s = std::sin(local.yaw);
   std::array<Vec2, 16> a{}, b{};
   a[0] = {local.x - c * half_length + s * half_width, local.y - s * half_length - c * half_width};
@@ -393,10 +416,11 @@ bool Renderer::image_box(const Pose2& local, double half_length, double half_wid
     for (int k = 0; k < 4; ++k) {  // edges bow under lens distortion
       const double t = k / 4.0;
       Eigen::Vector2d pixel;
-      if (!camera_.ground_to_image({p.x + t * (q.x - p.x), p.y + t * (q.y - p.y)}, pixel))
-        return false;
-      u0 = std::min(u0, pixel.x()); u1 = std::max(u1, pixel.x());
-      v0 = std::min(v0, pixel.y()); v1 = std::max(v1, pixel.y());
+      if (!camera_.ground_to_image({p.x + t * (q.x - p.x), p.y + t * (q.y - p.y)}, pixel)) return false;
+      u0 = std::min(u0, pixel.x());
+      u1 = std::max(u1, pixel.x());
+      v0 = std::min(v0, pixel.y());
+      v1 = std::max(v1, pixel.y());
     }
   }
   const int x0 = std::max(0, static_cast<int>(std::floor(u0)) - 2);
@@ -408,8 +432,7 @@ bool Renderer::image_box(const Pose2& local, double half_length, double half_wid
   return true;
 }
 
-void Renderer::paint_strip(const Pose2& local, const Strip& strip, const Pose2& pose,
-                           double wear) {
+void Renderer::paint_strip(const Pose2& local, const Strip& strip, const Pose2& pose, double wear) {
   cv::Rect box;
   if (!image_box(local, strip.half_length, strip.half_width, box)) return;
   ++counters_.strips_drawn;
@@ -450,8 +473,7 @@ void Renderer::paint_strip(const Pose2& local, const Strip& strip, const Pose2& 
   }
 }
 
-void Renderer::paint_marking(const Pose2& local, const Marking& marking, const Pose2& pose,
-                             double wear) {
+void Renderer::paint_marking(const Pose2& local, const Marking& marking, const Pose2& pose, double wear) {
   const double hl = marking.length_m / 2, hw = marking.width_m / 2;
   cv::Rect box;
   if (!image_box(local, hl, hw, box)) return;
@@ -464,8 +486,7 @@ void Renderer::paint_marking(const Pose2& local, const Marking& marking, const P
   const auto lx = static_cast<float>(local.x), ly = static_cast<float>(local.y);
   const double pc = std::cos(pose.yaw), ps = std::sin(pose.yaw);
   // Each marking has its own wear, the same on every pass.
-  const float level =
-      static_cast<float>(wear) * unit_from_hash(hash2(marking.id, 0x3EA2, kWearSeed));
+  const float level = static_cast<float>(wear) * unit_from_hash(hash2(marking.id, 0x3EA2, kWearSeed));
   const float paint = 0.82F;
   const auto fhl = static_cast<float>(hl), fhw = static_cast<float>(hw);
   for (int r = box.y; r < box.y + box.height; ++r) {
@@ -497,8 +518,8 @@ void Renderer::paint_marking(const Pose2& local, const Marking& marking, const P
   }
 }
 
-void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& conditions,
-                      std::uint64_t frame, std::span<const Occluder> occluders, cv::Mat& image) {
+void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& conditions, std::uint64_t frame,
+                      std::span<const Occluder> occluders, cv::Mat& image) {
   ++counters_.frames;
   const Light light = light_of(conditions.light);
   const bool wet = conditions.light == Illumination::kWetGlare;
@@ -511,8 +532,8 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
   // 1. Road surface coverage.
   std::fill(road_.begin(), road_.end(), 0.0F);
   near_.clear();
-  for_each_near(pose.x + pc * kStripRange / 2, pose.y + ps * kStripRange / 2,
-                kStripRange / 2 + cell_m_, false, [&](std::uint32_t i) { near_.push_back(i); });
+  for_each_near(pose.x + pc * kStripRange / 2, pose.y + ps * kStripRange / 2, kStripRange / 2 + cell_m_,
+                false, [&](std::uint32_t i) { near_.push_back(i); });
   for (const std::uint32_t i : near_) {
     const Strip& strip = scenario_.strips[i];
     if (strip.kind != StripKind::kRoad) continue;
@@ -580,8 +601,8 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
     paint_strip(local, strip, pose, conditions.paint_wear);
   }
   near_.clear();
-  for_each_near(pose.x + pc * kMarkingRange / 2, pose.y + ps * kMarkingRange / 2,
-                kMarkingRange / 2 + cell_m_, true, [&](std::uint32_t i) { near_.push_back(i); });
+  for_each_near(pose.x + pc * kMarkingRange / 2, pose.y + ps * kMarkingRange / 2, kMarkingRange / 2 + cell_m_,
+                true, [&](std::uint32_t i) { near_.push_back(i); });
   for (const std::uint32_t i : near_) {
     const Marking& m = scenario_.markings[i];
     const Pose2 local = compose(to_vehicle, Pose2{m.x, m.y, m.heading});
@@ -634,15 +655,17 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
       continue;
     const double px_per_m = (right.x() - left.x()) / o.width_m;
     const double bottom = (left.y() + right.y()) / 2;
-    const cv::Rect body(cv::Point(static_cast<int>(left.x()), static_cast<int>(bottom - o.height_m * px_per_m)),
-                        cv::Point(static_cast<int>(right.x()), static_cast<int>(bottom)));
+    const cv::Rect body(
+        cv::Point(static_cast<int>(left.x()), static_cast<int>(bottom - o.height_m * px_per_m)),
+        cv::Point(static_cast<int>(right.x()), static_cast<int>(bottom)));
     const float g = night ? 0.02F : light.gain;
     cv::rectangle(shaded_, body, cv::Scalar(0.09 * g + 0.01), cv::FILLED);
     const int bh = body.height;
     cv::rectangle(shaded_, cv::Rect(body.x + body.width / 8, body.y + bh / 10, body.width * 3 / 4, bh / 3),
                   cv::Scalar(0.2 * g + 0.02), cv::FILLED);  // rear window
     const float lamp = night ? 0.95F : 0.3F * g;
-    cv::rectangle(shaded_, cv::Rect(body.x + 2, body.y + bh / 2, body.width / 7, bh / 8), cv::Scalar(lamp), cv::FILLED);
+    cv::rectangle(shaded_, cv::Rect(body.x + 2, body.y + bh / 2, body.width / 7, bh / 8), cv::Scalar(lamp),
+                  cv::FILLED);
     cv::rectangle(shaded_, cv::Rect(body.x + body.width * 6 / 7 - 2, body.y + bh / 2, body.width / 7, bh / 8),
                   cv::Scalar(lamp), cv::FILLED);
   }
@@ -660,8 +683,10 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
   // 7. Sensor noise (more gain in low light, more noise) and quantisation.
   if (image.rows != height_ || image.cols != width_ || image.type() != CV_8UC1)
     image.create(height_, width_, CV_8UC1);
-  const float sigma = static_cast<float>(conditions.noise_sigma) *
-                      (night ? 3.0F : conditions.light == Illumination::kDusk ? 2.0F : 1.0F);
+  const float sigma =
+      static_cast<float>(conditions.noise_sigma) * (night                                     ? 3.0F
+                                                    : conditions.light == Illumination::kDusk ? 2.0F
+                                                                                              : 1.0F);
   std::uint64_t state = hash2(static_cast<std::int64_t>(frame), 0x4015E, conditions.seed);
   const float gain = night ? 2.2F : conditions.light == Illumination::kDusk ? 1.6F : 1.0F;
   for (int r = 0; r < height_; ++r) {
@@ -672,7 +697,8 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
       // Sum of four uniforms: close enough to Gaussian for sensor noise.
       const float u = static_cast<float>((state & 0xFFFF) + ((state >> 16) & 0xFFFF) +
                                          ((state >> 32) & 0xFFFF) + (state >> 48)) *
-                          (1.0F / 65536.0F) - 2.0F;
+                          (1.0F / 65536.0F) -
+                      2.0F;
       const float v = in[c] * gain * 255.0F + sigma * 1.732F * u;
       out[c] = static_cast<std::uint8_t>(std::clamp(v + 0.5F, 0.0F, 255.0F));
     }
@@ -680,14 +706,13 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
 }
 
 void Renderer::visible_markings(const Pose2& pose, double min_ahead_m, double max_ahead_m,
-                                std::span<const Occluder> occluders,
-                                std::vector<VisibleMarking>& out) const {
+                                std::span<const Occluder> occluders, std::vector<VisibleMarking>& out) const {
   out.clear();
   const Pose2 to_vehicle = inverse(pose);
   const double pc = std::cos(pose.yaw), ps = std::sin(pose.yaw);
   near_.clear();
-  for_each_near(pose.x + pc * max_ahead_m / 2, pose.y + ps * max_ahead_m / 2,
-                max_ahead_m / 2 + cell_m_, true, [&](std::uint32_t i) { near_.push_back(i); });
+  for_each_near(pose.x + pc * max_ahead_m / 2, pose.y + ps * max_ahead_m / 2, max_ahead_m / 2 + cell_m_, true,
+                [&](std::uint32_t i) { near_.push_back(i); });
   std::sort(near_.begin(), near_.end());
   for (const std::uint32_t i : near_) {
     const Marking& m = scenario_.markings[i];
@@ -706,16 +731,14 @@ void Renderer::visible_markings(const Pose2& pose, double min_ahead_m, double ma
       const double a = corners[k][0], b = corners[k][1];
       Eigen::Vector2d pixel;
       inside = camera_.ground_to_image({local.x + c * a - s * b, local.y + s * a + c * b}, pixel) &&
-               pixel.x() >= 0 && pixel.y() >= 0 && pixel.x() <= width_ - 1.0 &&
-               pixel.y() <= height_ - 1.0;
+               pixel.x() >= 0 && pixel.y() >= 0 && pixel.x() <= width_ - 1.0 && pixel.y() <= height_ - 1.0;
       v.quad[k] = {static_cast<float>(pixel.x()), static_cast<float>(pixel.y())};
     }
     if (!inside) continue;
     // Hidden when its centre is behind a vehicle (the vehicle is nearer).
     bool hidden = false;
     for (const Occluder& o : occluders)
-      if (local.x > o.ahead_m &&
-          std::abs(local.y * o.ahead_m / local.x - o.left_m) < o.width_m / 2 + 0.3)
+      if (local.x > o.ahead_m && std::abs(local.y * o.ahead_m / local.x - o.left_m) < o.width_m / 2 + 0.3)
         hidden = true;
     if (!hidden) out.push_back(v);
   }

@@ -33,12 +33,12 @@ std::string_view illumination_name(Illumination light);
 
 struct Conditions {
   Illumination light = Illumination::kDay;
-  double paint_wear = 0.35;            // worst wear of any marking, 0 (fresh) .. 1
-  bool shadows = true;                 // tree/building shadows (sunny light only)
-  double occluder_probability = 0.3;   // share of 12 s windows with a vehicle ahead
-  double noise_sigma = 2.0;            // sensor noise, grey levels at full light
-  double exposure_s = 0.004;           // motion blur: ground travelled while exposed
-  std::uint64_t seed = 1;              // sensor noise, vehicles, sun position
+  double paint_wear = 0.35;           // worst wear of any marking, 0 (fresh) .. 1
+  bool shadows = true;                // tree/building shadows (sunny light only)
+  double occluder_probability = 0.3;  // share of 12 s windows with a vehicle ahead
+  double noise_sigma = 2.0;           // sensor noise, grey levels at full light
+  double exposure_s = 0.004;          // motion blur: ground travelled while exposed
+  std::uint64_t seed = 1;             // sensor noise, vehicles, sun position
 };
 
 // A vehicle ahead, in the vehicle frame: the centre of its rear on the road.
@@ -81,14 +81,13 @@ class Renderer {
 
   // Draws the view from `pose` (true pose, world frame) into `image`
   // (CV_8UC1, camera size; allocated here only when it has another size).
-  void render(const Pose2& pose, double speed_mps, const Conditions& conditions,
-              std::uint64_t frame, std::span<const Occluder> occluders, cv::Mat& image);
+  void render(const Pose2& pose, double speed_mps, const Conditions& conditions, std::uint64_t frame,
+              std::span<const Occluder> occluders, cv::Mat& image);
 
   // Markings whose whole footprint projects inside the image, whose centre
   // lies min_ahead..max_ahead metres in front and that no vehicle hides.
   void visible_markings(const Pose2& pose, double min_ahead_m, double max_ahead_m,
-                        std::span<const Occluder> occluders,
-                        std::vector<VisibleMarking>& out) const;
+                        std::span<const Occluder> occluders, std::vector<VisibleMarking>& out) const;
 
   const RenderCounters& counters() const { return counters_; }
 
@@ -104,8 +103,7 @@ class Renderer {
   void build_templates();
   template <typename Visit>
   void for_each_near(double x, double y, double radius, bool markings, Visit&& visit) const;
-  bool image_box(const Pose2& local, double half_length, double half_width,
-                 cv::Rect& box) const;
+  bool image_box(const Pose2& local, double half_length, double half_width, cv::Rect& box) const;
   void paint_strip(const Pose2& local, const Strip& strip, const Pose2& pose, double wear);
   void paint_marking(const Pose2& local, const Marking& marking, const Pose2& pose, double wear);
 
@@ -113,14 +111,14 @@ class Renderer {
   const Scenario& scenario_;
   int width_ = 0, height_ = 0;
   // Per pixel, from the calibration.
-  std::vector<float> ground_x_, ground_y_;    // vehicle frame; NaN above the horizon
+  std::vector<float> ground_x_, ground_y_;        // vehicle frame; NaN above the horizon
   std::vector<float> footprint_x_, footprint_y_;  // ground metres one pixel spans
-  std::vector<float> fine_detail_;            // weight of sub-decimetre texture
-  std::vector<int> horizon_row_;              // per column: first row that sees the road
+  std::vector<float> fine_detail_;                // weight of sub-decimetre texture
+  std::vector<int> horizon_row_;                  // per column: first row that sees the road
   double nearest_ground_m_ = 0.0;
-  double view_slope_ = 0.0;  // widest |y|/x the camera sees on the ground
-  std::vector<float> column_bearing_;         // per column: bearing of its ray, radians left
-  NoiseTile noise_{0xA5F0};                   // the world's textures, all scales
+  double view_slope_ = 0.0;            // widest |y|/x the camera sees on the ground
+  std::vector<float> column_bearing_;  // per column: bearing of its ray, radians left
+  NoiseTile noise_{0xA5F0};            // the world's textures, all scales
   // Per illumination (recomputed when it changes): light and haze per pixel.
   std::vector<float> base_light_, haze_;
   int cached_light_ = -1;

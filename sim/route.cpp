@@ -39,8 +39,10 @@ bool parse_numbers(std::string_view line, std::vector<double>& out, std::string&
 // "850 m" or "12 km" (adding 0.0 prints -0 as 0).
 std::string distance_text(double metres) {
   char text[64];
-  if (std::abs(metres) < 10e3) std::snprintf(text, sizeof text, "%.0f m", metres + 0.0);
-  else std::snprintf(text, sizeof text, "%.0f km", metres / 1000.0 + 0.0);
+  if (std::abs(metres) < 10e3)
+    std::snprintf(text, sizeof text, "%.0f m", metres + 0.0);
+  else
+    std::snprintf(text, sizeof text, "%.0f km", metres / 1000.0 + 0.0);
   return text;
 }
 
@@ -107,8 +109,7 @@ std::optional<Route> load_route(const std::string& path, std::string& error) {
       // the line is not a pose.
       const double norm_sq = numbers[4] * numbers[4] + numbers[5] * numbers[5] + numbers[6] * numbers[6] +
                              numbers[7] * numbers[7];
-      if (!(norm_sq > 1e-12))
-        return fail("quaternion qx qy qz qw is zero: not a rotation");
+      if (!(norm_sq > 1e-12)) return fail("quaternion qx qy qz qw is zero: not a rotation");
       point = {numbers[1], numbers[2]};
     }
     if (const std::string absurd = absurd_pose(point, points.empty() ? nullptr : &points.back(), length);
@@ -121,16 +122,14 @@ std::optional<Route> load_route(const std::string& path, std::string& error) {
     error = path + ": a route needs at least 2 poses, found " + std::to_string(route.poses);
     return std::nullopt;
   }
-  route.duration_s = route.format == RouteFormat::kKitti ? 0.1 * double(route.poses - 1)
-                                                          : last_t - first_t;
+  route.duration_s = route.format == RouteFormat::kKitti ? 0.1 * double(route.poses - 1) : last_t - first_t;
 
   // Resample every 0.5 m along the polyline, then smooth with a 5-point
   // moving average: recorded poses jitter, a car's path does not.
   Path raw;
   for (const auto& p : points) raw.add_point(p[0], p[1]);
   if (raw.length() < 10.0) {
-    error = path + ": the route is only " + std::to_string(raw.length()) +
-            " m long (at least 10 m needed)";
+    error = path + ": the route is only " + std::to_string(raw.length()) + " m long (at least 10 m needed)";
     return std::nullopt;
   }
   std::vector<std::array<double, 2>> even;

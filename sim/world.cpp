@@ -23,7 +23,7 @@ constexpr std::array<double, kClassCount> kLegacyWeights = {
     0.08, 0.02,                    // bike, rail
     0.05, 0.10, 0.05,              // 25, 35, 40
     0.02,                          // diamond
-    0.0, 0.0,                      // stopline, crosswalk
+    0.0,  0.0,                     // stopline, crosswalk
 };
 
 std::uint64_t mix(std::uint64_t x) {
@@ -44,8 +44,7 @@ void add_arc(Path& path, double cx, double cy, double radius, double a0, double 
 
 void add_line(Path& path, double x0, double y0, double x1, double y1) {
   const int steps = std::max(1, static_cast<int>(std::hypot(x1 - x0, y1 - y0) / 0.5));
-  for (int i = 0; i <= steps; ++i)
-    path.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
+  for (int i = 0; i <= steps; ++i) path.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
 }
 
 // Counter-clockwise rounded rectangle starting mid bottom edge.
@@ -124,8 +123,7 @@ struct RowSegment {
 
 // Lays road surface, lane lines and marking rows along one lap of
 // scenario.road, skipping stretches that revisit an earlier one.
-void lay_world(Scenario& scenario, const WorldConfig& config,
-               const std::array<double, kClassCount>& weights,
+void lay_world(Scenario& scenario, const WorldConfig& config, const std::array<double, kClassCount>& weights,
                const std::vector<RowSegment>& segments) {
   const Path& road = scenario.road;
   const double length = road.length();
@@ -181,7 +179,7 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   // no markings there: they would lie across the other road's.
   std::vector<std::uint8_t> crossing(samples, 0);
   {
-    const double reach = lanes * w / 2 + 0.6;  // the road's half width, shoulders included
+    const double reach = lanes * w / 2 + 0.6;      // the road's half width, shoulders included
     const double to_centre = (lanes - 1) * w / 2;  // from the route's lane to the road's middle
     std::vector<Pose2> centres(samples);
     std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
@@ -235,8 +233,7 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
     std::size_t sample;
   };
   std::vector<LinePiece> line_pieces;
-  const auto line_at = [&](std::size_t i, const Pose2& p, double left, double half_length,
-                           StripKind kind) {
+  const auto line_at = [&](std::size_t i, const Pose2& p, double left, double half_length, StripKind kind) {
     line_pieces.push_back({scenario.strips.size(), i});
     strip_at(p, left, half_length, kLineHalfWidth, kind);
   };
@@ -252,11 +249,10 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
                StripKind::kRoad);
     else if (i % 2 == 0 || (i > 0 && revisit[i - 1]))
       strip_at(p, (lanes - 1) * w / 2, half, lanes * w / 2 + 0.6, StripKind::kRoad);
-    line_at(i, p, -w / 2 + 0.1, half, StripKind::kWhiteLine);             // edge
+    line_at(i, p, -w / 2 + 0.1, half, StripKind::kWhiteLine);              // edge
     line_at(i, p, (lanes - 0.5) * w - 0.1, half, StripKind::kYellowLine);  // centre
     if (std::fmod(s, kDashPeriod) < kDashLength)
-      for (int k = 0; k + 1 < lanes; ++k)
-        line_at(i, p, (k + 0.5) * w, half - 0.05, StripKind::kWhiteLine);
+      for (int k = 0; k + 1 < lanes; ++k) line_at(i, p, (k + 0.5) * w, half - 0.05, StripKind::kWhiteLine);
   }
 
   // 3. Marking rows. Each segment draws its rows from its own generator, so
@@ -289,8 +285,7 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   // towards its lane's lines and the corner's arc crosses the next street.
   constexpr double kMaxBend = 0.1, kLineClearance = 0.3;
   constexpr double kOwnStretch = 2.0;  // its own lines (a stop line meets one) are judged by the bend
-  const auto lies_flat = [&](double s, double left, const Pose2& at, double half_length,
-                             double half_width) {
+  const auto lies_flat = [&](double s, double left, const Pose2& at, double half_length, double half_width) {
     const double c = std::cos(at.yaw), sn = std::sin(at.yaw);
     const auto offset = [&](double x, double y) {  // along, across the marking
       return std::array<double, 2>{(x - at.x) * c + (y - at.y) * sn, -(x - at.x) * sn + (y - at.y) * c};
@@ -321,8 +316,7 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
   std::uint32_t next_id = 0;
   for (const RowSegment& segment : segments) {
     std::mt19937_64 rng(segment.seed);
-    std::uniform_real_distribution<double> spacing(config.row_spacing_min_m,
-                                                   config.row_spacing_max_m);
+    std::uniform_real_distribution<double> spacing(config.row_spacing_min_m, config.row_spacing_max_m);
     const double end = std::min(segment.end_s, length - 5.0);
     for (double s = segment.begin_s + spacing(rng) / 2; s < end; s += spacing(rng)) {
       const Pose2 centre = road.at(s);
@@ -343,14 +337,12 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
         const Pose2 at = beside(centre, left);
         // (The random draws stay as if it were laid: the rows after it are
         // the same with or without the intersection or the marking before.)
-        if (!clear_of_crossings(s, size[0] / 2) ||
-            !clear_of_lanes(first_lane, last_lane, stretch) ||
+        if (!clear_of_crossings(s, size[0] / 2) || !clear_of_lanes(first_lane, last_lane, stretch) ||
             !lies_flat(s, left, at, size[0] / 2, size[1] / 2)) {
           if (label == crosswalk) break;
           continue;
         }
-        for (int k = first_lane; k <= last_lane; ++k)
-          laid_in_lane[static_cast<std::size_t>(k)] = stretch;
+        for (int k = first_lane; k <= last_lane; ++k) laid_in_lane[static_cast<std::size_t>(k)] = stretch;
         Marking m;
         m.id = next_id++;
         m.label = label;
@@ -368,7 +360,7 @@ void lay_world(Scenario& scenario, const WorldConfig& config,
 }
 
 std::array<double, kClassCount> weights_for(const WorldConfig& config,
-                                           const std::array<double, kClassCount>& fallback) {
+                                            const std::array<double, kClassCount>& fallback) {
   return config.class_weights ? *config.class_weights : fallback;
 }
 
@@ -389,21 +381,38 @@ std::array<double, 2> marking_size(Label label, double lane_width_m, int lanes) 
   // turn and combined arrows as short and wide as the real images' city
   // streets paint them).
   switch (label) {
-    case 0: return {6.0, 0.9};   // forward
-    case 1: return {2.6, 2.2};   // leftturn (short, as in the real images)
-    case 2: return {2.6, 2.2};   // rightturn
-    case 3: return {2.6, 2.2};   // forward&left (short, as in the real images)
-    case 4: return {2.6, 2.2};   // forward&right
-    case 5: return {2.4, 2.8};   // STOP
-    case 6: return {2.4, 2.2};   // PED
-    case 7: return {2.4, 2.8};   // XING
-    case 8: return {1.8, 1.4};   // bicycle with rider, or the word BIKE
-    case 9: return {4.6, 2.6};   // railway crossing X (R either side)
-    case 10: case 11: case 12: return {2.4, 1.6};  // 25 35 40
-    case 13: return {6.0, 1.0};  // diamond
-    case 14: return {0.45, lane_width_m - 0.3};     // stop line
-    case 15: return {3.0, lanes * lane_width_m - 0.4};  // crosswalk
-    default: return {1.0, 1.0};
+    case 0:
+      return {6.0, 0.9};  // forward
+    case 1:
+      return {2.6, 2.2};  // leftturn (short, as in the real images)
+    case 2:
+      return {2.6, 2.2};  // rightturn
+    case 3:
+      return {2.6, 2.2};  // forward&left (short, as in the real images)
+    case 4:
+      return {2.6, 2.2};  // forward&right
+    case 5:
+      return {2.4, 2.8};  // STOP
+    case 6:
+      return {2.4, 2.2};  // PED
+    case 7:
+      return {2.4, 2.8};  // XING
+    case 8:
+      return {1.8, 1.4};  // bicycle with rider, or the word BIKE
+    case 9:
+      return {4.6, 2.6};  // railway crossing X (R either side)
+    case 10:
+    case 11:
+    case 12:
+      return {2.4, 1.6};  // 25 35 40
+    case 13:
+      return {6.0, 1.0};  // diamond
+    case 14:
+      return {0.45, lane_width_m - 0.3};  // stop line
+    case 15:
+      return {3.0, lanes * lane_width_m - 0.4};  // crosswalk
+    default:
+      return {1.0, 1.0};
   }
 }
 
@@ -468,8 +477,7 @@ Pose2 Path::at(double s) const {
   s = std::clamp(s, 0.0, length());
   const auto it = std::upper_bound(cumulative_.begin(), cumulative_.end(), s);
   const std::size_t i = std::min<std::size_t>(
-      static_cast<std::size_t>(std::max<std::ptrdiff_t>(it - cumulative_.begin() - 1, 0)),
-      xs_.size() - 2);
+      static_cast<std::size_t>(std::max<std::ptrdiff_t>(it - cumulative_.begin() - 1, 0)), xs_.size() - 2);
   const double span = cumulative_[i + 1] - cumulative_[i];
   const double f = span > 0 ? (s - cumulative_[i]) / span : 0.0;
   const double dx = xs_[i + 1] - xs_[i];
@@ -478,22 +486,18 @@ Pose2 Path::at(double s) const {
   // neighbouring segment it blends the two directions over half the shorter
   // segment's length either side (a polyline's own direction would jump at
   // every point of a curve).
-  const auto direction = [&](std::size_t j) {
-    return std::atan2(ys_[j + 1] - ys_[j], xs_[j + 1] - xs_[j]);
-  };
+  const auto direction = [&](std::size_t j) { return std::atan2(ys_[j + 1] - ys_[j], xs_[j + 1] - xs_[j]); };
   const auto length_of = [&](std::size_t j) { return cumulative_[j + 1] - cumulative_[j]; };
   const double own = std::atan2(dy, dx);
   const double from_start = s - cumulative_[i], to_end = span - from_start;
   double yaw = own;
   if (i > 0) {
     const double zone = 0.5 * std::min(span, length_of(i - 1));
-    if (from_start < zone)
-      yaw = own + 0.5 * (1.0 - from_start / zone) * wrap_angle(direction(i - 1) - own);
+    if (from_start < zone) yaw = own + 0.5 * (1.0 - from_start / zone) * wrap_angle(direction(i - 1) - own);
   }
   if (i + 2 < xs_.size()) {
     const double zone = 0.5 * std::min(span, length_of(i + 1));
-    if (to_end < zone)
-      yaw = own + 0.5 * (1.0 - to_end / zone) * wrap_angle(direction(i + 1) - own);
+    if (to_end < zone) yaw = own + 0.5 * (1.0 - to_end / zone) * wrap_angle(direction(i + 1) - own);
   }
   yaw = wrap_angle(yaw);
   return {xs_[i] + f * dx, ys_[i] + f * dy, yaw};
@@ -512,9 +516,18 @@ Path city_tour(std::vector<StreetStart>& streets) {
   std::vector<std::array<double, 2>> corners;
   const auto go = [&](double i, double j) { corners.push_back({i * bx, j * by}); };
   // Outer 3x2 rectangle, then two loops through the inner north-south streets.
-  go(0, 0); go(3, 0); go(3, 2); go(0, 2);
-  go(0, 0); go(1, 0); go(1, 2); go(0, 2);
-  go(0, 0); go(2, 0); go(2, 2); go(0, 2);
+  go(0, 0);
+  go(3, 0);
+  go(3, 2);
+  go(0, 2);
+  go(0, 0);
+  go(1, 0);
+  go(1, 2);
+  go(0, 2);
+  go(0, 0);
+  go(2, 0);
+  go(2, 2);
+  go(0, 2);
   return rounded_tour(corners, 12.0, streets);
 }
 
@@ -535,8 +548,7 @@ std::vector<RowSegment> street_segments(const std::vector<StreetStart>& streets,
 
 }  // namespace
 
-std::optional<Scenario> make_scenario(std::string_view name, std::uint64_t seed,
-                                      const WorldConfig& config) {
+std::optional<Scenario> make_scenario(std::string_view name, std::uint64_t seed, const WorldConfig& config) {
   Scenario s;
   s.name = std::string(name);
   std::vector<RowSegment> segments;
@@ -584,14 +596,12 @@ std::optional<Scenario> make_scenario(std::string_view name, std::uint64_t seed,
   return s;
 }
 
-Scenario make_route_scenario(std::string name, Path route, std::uint64_t seed,
-                             const WorldConfig& config) {
+Scenario make_route_scenario(std::string name, Path route, std::uint64_t seed, const WorldConfig& config) {
   Scenario s;
   s.name = std::move(name);
   s.description = "a route from a pose file";
   s.road = std::move(route);
-  lay_world(s, config, weights_for(config, default_class_weights()),
-            {{0.0, s.road.length(), seed}});
+  lay_world(s, config, weights_for(config, default_class_weights()), {{0.0, s.road.length(), seed}});
   return s;
 }
 

@@ -30,8 +30,8 @@ struct Marking {
   Label label = 0;  // index into marking_class_names()
   double x = 0.0;   // centre of the painted footprint, world frame, metres
   double y = 0.0;
-  double heading = 0.0;  // driving direction the marking is painted for
-  int lane = 0;          // 0 = the route's lane; crosswalks span the road (lane 0)
+  double heading = 0.0;   // driving direction the marking is painted for
+  int lane = 0;           // 0 = the route's lane; crosswalks span the road (lane 0)
   double length_m = 0.0;  // footprint along the heading
   double width_m = 0.0;   // footprint across
 };
@@ -64,9 +64,9 @@ class Path {
 struct Scenario {
   std::string name;
   std::string description;
-  Path road;          // one lap of the drive along the right lane's centre
-  int laps = 1;       // how many times the drive goes round
-  int days = 1;       // > 1: each lap is another day (other light, other sensor noise)
+  Path road;     // one lap of the drive along the right lane's centre
+  int laps = 1;  // how many times the drive goes round
+  int days = 1;  // > 1: each lap is another day (other light, other sensor noise)
   std::vector<Marking> markings;
   std::vector<Strip> strips;  // road surface and lane lines
 };
@@ -75,8 +75,8 @@ struct WorldConfig {
   double row_spacing_min_m = 15.0;  // along-track distance between marking rows
   double row_spacing_max_m = 60.0;
   double lane_width_m = 3.5;
-  int lanes = 2;                    // the car drives in lane 0 (rightmost)
-  double marking_probability = 0.6; // per lane and row
+  int lanes = 2;                     // the car drives in lane 0 (rightmost)
+  double marking_probability = 0.6;  // per lane and row
   // Relative frequency of each class (index = Label); unset = the scenario's
   // default (the legacy scenarios draw no stop lines or crosswalks).
   std::optional<std::array<double, kClassCount>> class_weights;
@@ -89,8 +89,7 @@ struct WorldConfig {
 std::array<double, kClassCount> default_class_weights();
 // Parses "name=weight,name=weight,..." (unnamed classes get 0) into
 // `weights`; on error returns false with `error` saying what is wrong.
-bool parse_class_weights(std::string_view text, std::array<double, kClassCount>& weights,
-                         std::string& error);
+bool parse_class_weights(std::string_view text, std::array<double, kClassCount>& weights, std::string& error);
 
 // Built-in scenarios (see scenario_names()). Returns nullopt for an unknown
 // name.

@@ -35,11 +35,21 @@ class LargeArray {
     std::uninitialized_value_construct_n(data_.get(), size);
   }
 
-  std::size_t size() const { return size_; }
-  T& operator[](std::size_t i) { return data_[i]; }
-  const T& operator[](std::size_t i) const { return data_[i]; }
-  T* begin() { return data_.get(); }
-  T* end() { return data_.get() + size_; }
+  std::size_t size() const {
+    return size_;
+  }
+  T& operator[](std::size_t i) {
+    return data_[i];
+  }
+  const T& operator[](std::size_t i) const {
+    return data_[i];
+  }
+  T* begin() {
+    return data_.get();
+  }
+  T* end() {
+    return data_.get() + size_;
+  }
 
  private:
   struct Free {

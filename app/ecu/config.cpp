@@ -29,8 +29,7 @@ bool parse_double(std::string_view text, double& out) {
   char* end = nullptr;
   errno = 0;
   const double value = std::strtod(copy.c_str(), &end);
-  if (copy.empty() || end != copy.c_str() + copy.size() || errno != 0 || !std::isfinite(value))
-    return false;
+  if (copy.empty() || end != copy.c_str() + copy.size() || errno != 0 || !std::isfinite(value)) return false;
   out = value;
   return true;
 }
@@ -90,8 +89,8 @@ Key integer_key(const char* name, long long low, long long high, Get field) {
             long long value = 0;
             if (!parse_int(v, value)) return "not a whole number: '" + std::string(v) + "'";
             if (value < low || value > high)
-              return "must be between " + std::to_string(low) + " and " + std::to_string(high) +
-                     ", got " + std::string(v);
+              return "must be between " + std::to_string(low) + " and " + std::to_string(high) + ", got " +
+                     std::string(v);
             using T = std::remove_reference_t<decltype(field(c))>;
             field(c) = static_cast<T>(value);
             return std::string();
@@ -126,16 +125,15 @@ Key real_key(const char* name, double low, double high, Get field) {
 
 template <typename Get>
 Key bool_key(const char* name, Get field) {
-  return {name,
-          [=](EcuConfig& c, std::string_view v) {
-            bool value = false;
-            if (!parse_bool(v, value)) return "not true/false: '" + std::string(v) + "'";
-            field(c) = value;
-            return std::string();
-          },
-          [=](const EcuConfig& c) {
-            return std::string(field(const_cast<EcuConfig&>(c)) ? "true" : "false");
-          }};
+  return {
+      name,
+      [=](EcuConfig& c, std::string_view v) {
+        bool value = false;
+        if (!parse_bool(v, value)) return "not true/false: '" + std::string(v) + "'";
+        field(c) = value;
+        return std::string();
+      },
+      [=](const EcuConfig& c) { return std::string(field(const_cast<EcuConfig&>(c)) ? "true" : "false"); }};
 }
 
 const std::vector<Key>& keys() {
@@ -145,9 +143,12 @@ const std::vector<Key>& keys() {
       integer_key("camera.input", -1, 64, [](EcuConfig& c) -> int& { return c.camera.input; }),
       {"camera.format",
        [](EcuConfig& c, std::string_view v) {
-         if (v == "grey" || v == "GREY") c.camera.format = PixelFormat::kGrey;
-         else if (v == "yuyv" || v == "YUYV") c.camera.format = PixelFormat::kYuyv;
-         else return "must be grey or yuyv, got '" + std::string(v) + "'";
+         if (v == "grey" || v == "GREY")
+           c.camera.format = PixelFormat::kGrey;
+         else if (v == "yuyv" || v == "YUYV")
+           c.camera.format = PixelFormat::kYuyv;
+         else
+           return "must be grey or yuyv, got '" + std::string(v) + "'";
          return std::string();
        },
        [](const EcuConfig& c) {
@@ -156,8 +157,7 @@ const std::vector<Key>& keys() {
       integer_key("camera.width", 16, 8192, [](EcuConfig& c) -> unsigned& { return c.camera.width; }),
       integer_key("camera.height", 16, 8192, [](EcuConfig& c) -> unsigned& { return c.camera.height; }),
       integer_key("camera.fps", 0, 240, [](EcuConfig& c) -> unsigned& { return c.camera.fps; }),
-      integer_key("camera.max_rate", 0, 240,
-                  [](EcuConfig& c) -> unsigned& { return c.camera.max_rate; }),
+      integer_key("camera.max_rate", 0, 240, [](EcuConfig& c) -> unsigned& { return c.camera.max_rate; }),
       integer_key("camera.timeout_ms", 10, 60000,
                   [](EcuConfig& c) -> unsigned& { return c.camera.timeout_ms; }),
       integer_key("camera.blind_frames", 1, 100000,
@@ -179,12 +179,10 @@ const std::vector<Key>& keys() {
                   [](EcuConfig& c) -> std::uint64_t& { return c.first_frame; }),
       integer_key("file.frames", 0, std::int64_t{1} << 40,
                   [](EcuConfig& c) -> std::uint64_t& { return c.frame_count; }),
-      integer_key("realtime.priority", 0, 99,
-                  [](EcuConfig& c) -> int& { return c.realtime.priority; }),
+      integer_key("realtime.priority", 0, 99, [](EcuConfig& c) -> int& { return c.realtime.priority; }),
       integer_key("realtime.cpu", -1, 1023, [](EcuConfig& c) -> int& { return c.realtime.cpu; }),
       bool_key("realtime.mlockall", [](EcuConfig& c) -> bool& { return c.realtime.lock_memory; }),
-      real_key("observation.min_score", 0.0, 1.0,
-               [](EcuConfig& c) -> float& { return c.gate.min_score; }),
+      real_key("observation.min_score", 0.0, 1.0, [](EcuConfig& c) -> float& { return c.gate.min_score; }),
       real_key("observation.min_range_m", 0.0, 100.0,
                [](EcuConfig& c) -> float& { return c.gate.min_range_m; }),
       real_key("observation.max_range_m", 0.0, 100.0,
@@ -268,7 +266,8 @@ std::string load_config_file(const std::string& path, EcuConfig& config) {
     if (text.empty()) continue;
     const auto equals = text.find('=');
     const std::string where = path + ":" + std::to_string(number) + ": ";
-    if (equals == std::string_view::npos) return where + "expected 'key = value', got '" + std::string(line) + "'";
+    if (equals == std::string_view::npos)
+      return where + "expected 'key = value', got '" + std::string(line) + "'";
     const std::string_view key = trim(text.substr(0, equals));
     const std::string_view value = trim(text.substr(equals + 1));
     if (key.empty()) return where + "missing key before '='";

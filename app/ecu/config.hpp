@@ -20,12 +20,12 @@ struct CameraSettings {
   std::string file;                    // frame file (.y4m); set: file mode
   int input = -1;                      // V4L2 input index; -1 keeps the current one
   PixelFormat format = PixelFormat::kGrey;
-  unsigned width = 1280;               // must match the calibration
+  unsigned width = 1280;  // must match the calibration
   unsigned height = 512;
-  unsigned fps = 10;                   // 0: the driver's rate (HDMI-like inputs); deadlines as 10
-  unsigned timeout_ms = 500;           // no frame this long: camera lost
-  unsigned max_rate = 0;               // process at most this many frames per second (0: all)
-  unsigned blind_frames = 10;          // this many frames in a row showing no road: camera blind
+  unsigned fps = 10;           // 0: the driver's rate (HDMI-like inputs); deadlines as 10
+  unsigned timeout_ms = 500;   // no frame this long: camera lost
+  unsigned max_rate = 0;       // process at most this many frames per second (0: all)
+  unsigned blind_frames = 10;  // this many frames in a row showing no road: camera blind
 };
 
 struct CanSettings {
@@ -35,9 +35,9 @@ struct CanSettings {
 };
 
 struct RealtimeSettings {
-  int priority = 0;        // SCHED_FIFO priority 1..99; 0 keeps the default scheduler
-  int cpu = -1;            // CPU to pin the loop to; -1 any
-  bool lock_memory = true; // mlockall(MCL_CURRENT | MCL_FUTURE) after start-up
+  int priority = 0;         // SCHED_FIFO priority 1..99; 0 keeps the default scheduler
+  int cpu = -1;             // CPU to pin the loop to; -1 any
+  bool lock_memory = true;  // mlockall(MCL_CURRENT | MCL_FUTURE) after start-up
 };
 
 // Which detections become observations for the engine (all are reported in
@@ -50,7 +50,7 @@ struct RealtimeSettings {
 // refuses it.
 struct ObservationGate {
   float min_score = 0.6f;
-  float min_range_m = 5.5f;   // ahead of the vehicle reference point
+  float min_range_m = 5.5f;  // ahead of the vehicle reference point
   float max_range_m = 16.0f;
 };
 
@@ -79,11 +79,11 @@ inline EngineConfig ecu_engine_defaults() {
 struct EcuConfig {
   CameraSettings camera;
   CanSettings can;
-  std::string calibration;      // camera calibration YAML; empty: the simulator's default
-  std::string map_file;         // place database; empty: none kept
+  std::string calibration;  // camera calibration YAML; empty: the simulator's default
+  std::string map_file;     // place database; empty: none kept
   bool save_map_on_exit = true;
-  std::string detections_out;   // CSV of every detection (file mode, evaluation)
-  std::string landmarks_out;    // CSV of the landmarks this run made (file mode, at the end; evaluation)
+  std::string detections_out;  // CSV of every detection (file mode, evaluation)
+  std::string landmarks_out;   // CSV of the landmarks this run made (file mode, at the end; evaluation)
   unsigned status_period_ms = 100;
   unsigned odometry_timeout_ms = 60;  // three cycles of VehicleOdometry
   bool realtime_replay = false;       // file mode: pace frames to the recorded rate

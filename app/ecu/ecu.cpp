@@ -4,9 +4,9 @@
 #include <cmath>
 #include <numbers>
 
+#include "app/perception/marking_classes.hpp"
 #include "dbc/markloop_messages.hpp"
 #include "dbc/receive.hpp"
-#include "app/perception/marking_classes.hpp"
 
 namespace markloop::ecu {
 
@@ -25,7 +25,9 @@ can::CanFrame to_can(const dbc::CanFrame& frame) {
   return out;
 }
 
-double seconds(Nanoseconds t) { return std::chrono::duration<double>(t).count(); }
+double seconds(Nanoseconds t) {
+  return std::chrono::duration<double>(t).count();
+}
 
 std::uint32_t saturate32(std::uint64_t v) {
   return v > 0xFFFFFFFFu ? 0xFFFFFFFFu : static_cast<std::uint32_t>(v);
@@ -34,8 +36,7 @@ std::uint32_t saturate32(std::uint64_t v) {
 }  // namespace
 
 Ecu::Ecu(const EcuConfig& config, const perception::CameraModel& camera,
-         const perception::DetectorConfig& detector_config, can::CanFrameSink* bus,
-         can::CanFrameSink* log)
+         const perception::DetectorConfig& detector_config, can::CanFrameSink* bus, can::CanFrameSink* log)
     : config_(config),
       detector_(camera, detector_config),
       engine_(config.engine),
@@ -43,7 +44,8 @@ Ecu::Ecu(const EcuConfig& config, const perception::CameraModel& camera,
       map_store_(config.map_file),
       bus_(bus),
       log_(log),
-      frame_period_(std::chrono::nanoseconds(1'000'000'000LL / (config.camera.fps == 0 ? 10U : config.camera.fps))) {}
+      frame_period_(
+          std::chrono::nanoseconds(1'000'000'000LL / (config.camera.fps == 0 ? 10U : config.camera.fps))) {}
 
 MapLoadResult Ecu::load_map() {
   return map_store_.load(engine_.mutable_database(), config_.engine.match);
@@ -51,8 +53,10 @@ MapLoadResult Ecu::load_map() {
 
 std::error_code Ecu::save_map() noexcept {
   const std::error_code ec = map_store_.save(engine_.database());
-  if (ec) ++counters_.map_save_failures;
-  else if (!map_store_.path().empty()) ++counters_.map_saves;
+  if (ec)
+    ++counters_.map_save_failures;
+  else if (!map_store_.path().empty())
+    ++counters_.map_saves;
   return ec;
 }
 
@@ -69,8 +73,8 @@ void Ecu::send(const can::CanFrame& frame, Nanoseconds stamp) noexcept {
 }
 
 void Ecu::on_can_frame(const can::CanFrame& frame, Nanoseconds now) noexcept {
-  const bool ours = !frame.extended &&
-                    (frame.id == dbc::VehicleOdometry::kId || frame.id == dbc::Command::kId);
+  const bool ours =
+      !frame.extended && (frame.id == dbc::VehicleOdometry::kId || frame.id == dbc::Command::kId);
   if (!ours) {
     ++counters_.foreign_frames;
     return;
@@ -96,9 +100,15 @@ void Ecu::handle_command(const can::CanFrame& frame) noexcept {
   }
   ++counters_.commands_accepted;
   switch (command.command_code) {
-    case dbc::CommandCode::ResetDatabase: clear_database(); break;
-    case dbc::CommandCode::SaveMap: (void)save_map(); break;
-    default: ++counters_.commands_rejected; break;
+    case dbc::CommandCode::ResetDatabase:
+      clear_database();
+      break;
+    case dbc::CommandCode::SaveMap:
+      (void)save_map();
+      break;
+    default:
+      ++counters_.commands_rejected;
+      break;
   }
 }
 
@@ -255,7 +265,8 @@ void Ecu::send_status(Nanoseconds now) noexcept {
   const double landmark_fill = double(db.landmarks) / double(std::max<std::size_t>(1, db.landmark_capacity));
   const double sequence_fill = double(db.sequences) / double(std::max<std::size_t>(1, db.sequence_capacity));
   status.database_fill_percent = 100.0 * std::max(landmark_fill, sequence_fill);
-  status.frames_dropped = static_cast<std::uint32_t>(std::min<std::uint64_t>(counters_.frames_dropped, 0xFFFFFF));
+  status.frames_dropped =
+      static_cast<std::uint32_t>(std::min<std::uint64_t>(counters_.frames_dropped, 0xFFFFFF));
   status.loop_time_max_ms = double(loop_time_max_ns_) / 1e6;
   status.landmark_count = static_cast<std::uint32_t>(std::min<std::size_t>(db.landmarks, 0xFFFFF));
   status.sequence_count = static_cast<std::uint32_t>(std::min<std::size_t>(db.sequences, 0xFFFFF));

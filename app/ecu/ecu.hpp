@@ -18,16 +18,16 @@
 
 #include <opencv2/core/mat.hpp>
 
-#include "drivers/can/can_frame.hpp"
+#include "app/common/fixed_vector.hpp"
 #include "app/ecu/config.hpp"
 #include "app/ecu/map_store.hpp"
 #include "app/ecu/odometry.hpp"
 #include "app/ecu/timing.hpp"
-#include "app/common/fixed_vector.hpp"
 #include "app/engine/sequence_engine.hpp"
-#include "dbc/e2e.hpp"
 #include "app/perception/camera_model.hpp"
 #include "app/perception/marking_detector.hpp"
+#include "dbc/e2e.hpp"
+#include "drivers/can/can_frame.hpp"
 
 namespace markloop::ecu {
 
@@ -35,27 +35,27 @@ using SteadyClock = std::chrono::steady_clock;
 
 struct EcuCounters {
   std::uint64_t frames_processed = 0;
-  std::uint64_t frames_dropped = 0;        // skipped (overrun) or lost by the camera
-  std::uint64_t frames_over_rate = 0;      // skipped on purpose: above camera.max_rate
-  std::uint64_t frames_without_pose = 0;   // processed for detection only
-  std::uint64_t frames_blind = 0;          // processed, but showed no road (perception::ViewKind)
-  std::uint64_t overruns = 0;              // processing took longer than a frame period
+  std::uint64_t frames_dropped = 0;       // skipped (overrun) or lost by the camera
+  std::uint64_t frames_over_rate = 0;     // skipped on purpose: above camera.max_rate
+  std::uint64_t frames_without_pose = 0;  // processed for detection only
+  std::uint64_t frames_blind = 0;         // processed, but showed no road (perception::ViewKind)
+  std::uint64_t overruns = 0;             // processing took longer than a frame period
   std::uint64_t detections = 0;
-  std::uint64_t detections_rejected = 0;   // unknown label or non-finite position
-  std::uint64_t detections_gated = 0;      // below the score or outside the range (ObservationGate)
-  std::uint64_t pose_losses = 0;           // chains broken because the pose became unknown
+  std::uint64_t detections_rejected = 0;  // unknown label or non-finite position
+  std::uint64_t detections_gated = 0;     // below the score or outside the range (ObservationGate)
+  std::uint64_t pose_losses = 0;          // chains broken because the pose became unknown
   std::uint64_t loop_detections = 0;
   std::uint64_t frames_sent = 0;
-  std::uint64_t send_errors = 0;           // the bus refused a frame (down, bus-off, queue full)
+  std::uint64_t send_errors = 0;  // the bus refused a frame (down, bus-off, queue full)
   std::uint64_t status_cycles = 0;
-  std::uint64_t foreign_frames = 0;        // ids markloop does not receive
-  std::uint64_t bad_frames = 0;            // extended/remote/oversized on our ids
+  std::uint64_t foreign_frames = 0;  // ids markloop does not receive
+  std::uint64_t bad_frames = 0;      // extended/remote/oversized on our ids
   std::uint64_t commands_accepted = 0;
-  std::uint64_t commands_rejected = 0;     // CRC, counter, length or unknown code
+  std::uint64_t commands_rejected = 0;  // CRC, counter, length or unknown code
   std::uint64_t database_resets = 0;
   std::uint64_t map_saves = 0;
   std::uint64_t map_save_failures = 0;
-  std::uint64_t can_frames_unused = 0;     // file mode: log frames after the last camera frame
+  std::uint64_t can_frames_unused = 0;  // file mode: log frames after the last camera frame
 };
 
 struct EcuFaults {
@@ -70,8 +70,7 @@ class Ecu final : private MatchSink {
  public:
   // `bus` and `log` receive every frame sent; either may be null.
   Ecu(const EcuConfig& config, const perception::CameraModel& camera,
-      const perception::DetectorConfig& detector_config, can::CanFrameSink* bus,
-      can::CanFrameSink* log);
+      const perception::DetectorConfig& detector_config, can::CanFrameSink* bus, can::CanFrameSink* log);
 
   // Start-up: fill the database from the map file (see MapStore).
   MapLoadResult load_map();
@@ -93,14 +92,20 @@ class Ecu final : private MatchSink {
     process(detections, frame_time, arrival, SteadyClock::now());
   }
   // A frame that was not processed (late: the loop overran) or lost.
-  void count_dropped_frames(std::uint64_t n) noexcept { counters_.frames_dropped += n; dropped_in_cycle_ += n; }
+  void count_dropped_frames(std::uint64_t n) noexcept {
+    counters_.frames_dropped += n;
+    dropped_in_cycle_ += n;
+  }
   void count_unused_can_frames(std::uint64_t n) noexcept { counters_.can_frames_unused += n; }
 
   // A frame skipped on purpose (camera.max_rate).
   void count_frame_over_rate() noexcept { ++counters_.frames_over_rate; }
 
   // Deadlines the loop missed (status timer expirations beyond one).
-  void count_overruns(std::uint64_t n) noexcept { counters_.overruns += n; overruns_in_cycle_ += n; }
+  void count_overruns(std::uint64_t n) noexcept {
+    counters_.overruns += n;
+    overruns_in_cycle_ += n;
+  }
 
   // The Status pages, stamped `now`. Call every status period.
   void send_status(Nanoseconds now) noexcept;

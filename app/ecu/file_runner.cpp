@@ -21,10 +21,10 @@
 
 #include <opencv2/core.hpp>
 
-#include "drivers/can/candump_log.hpp"
 #include "app/ecu/runner.hpp"
 #include "app/io/y4m.hpp"
 #include "app/perception/marking_classes.hpp"
+#include "drivers/can/candump_log.hpp"
 #include "platform/files.hpp"
 #include "platform/os.hpp"
 
@@ -51,8 +51,8 @@ class DetectionsCsv {
       std::fprintf(file_, "%llu,%.*s,%.3f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.3f,%.3f\n",
                    static_cast<unsigned long long>(frame), static_cast<int>(name.size()), name.data(),
                    double(d.score), double(d.quad[0][0]), double(d.quad[0][1]), double(d.quad[1][0]),
-                   double(d.quad[1][1]), double(d.quad[2][0]), double(d.quad[2][1]),
-                   double(d.quad[3][0]), double(d.quad[3][1]), double(d.ground_x), double(d.ground_y));
+                   double(d.quad[1][1]), double(d.quad[2][0]), double(d.quad[2][1]), double(d.quad[3][0]),
+                   double(d.quad[3][1]), double(d.ground_x), double(d.ground_y));
     }
   }
   bool close() {
@@ -79,9 +79,10 @@ bool write_landmarks_csv(const std::string& path, const SequenceDatabase& databa
     const Landmark* l = database.landmark(id);
     if (l == nullptr || l->station < 0.0) continue;
     const std::string_view name = perception::marking_class_name(l->label);
-    std::fprintf(file, "%.*s,%u,%u,%u,%.3f,%.3f,%.3f,%.3f,%.6f,%d\n", static_cast<int>(name.size()), name.data(),
-                 unsigned{l->observations}, l->first_frame, l->last_frame, double(l->x), double(l->y),
-                 double(l->car_x), double(l->car_y), double(l->car_yaw), l->has_car_pose ? 1 : 0);
+    std::fprintf(file, "%.*s,%u,%u,%u,%.3f,%.3f,%.3f,%.3f,%.6f,%d\n", static_cast<int>(name.size()),
+                 name.data(), unsigned{l->observations}, l->first_frame, l->last_frame, double(l->x),
+                 double(l->y), double(l->car_x), double(l->car_y), double(l->car_yaw),
+                 l->has_car_pose ? 1 : 0);
   }
   const bool ok = std::ferror(file) == 0;
   return std::fclose(file) == 0 && ok;
@@ -89,8 +90,7 @@ bool write_landmarks_csv(const std::string& path, const SequenceDatabase& databa
 
 nanoseconds frame_time(std::uint64_t k, const io::Y4mFormat& format) {
   // Exact in integers: k * den / num seconds.
-  const long double seconds =
-      static_cast<long double>(k) * format.fps_denominator / format.fps_numerator;
+  const long double seconds = static_cast<long double>(k) * format.fps_denominator / format.fps_numerator;
   return nanoseconds(static_cast<std::int64_t>(std::llround(seconds * 1e9L)));
 }
 
@@ -111,8 +111,13 @@ class FileRun {
  public:
   FileRun(const EcuConfig& config, io::Y4mReader& frames, can::CandumpLogReader& can_in, Ecu& ecu,
           int stop_fd, int pacing_timer_fd)
-      : config_(config), frames_(frames), can_in_(can_in), ecu_(ecu),
-        stop_fd_(stop_fd), pacing_timer_fd_(pacing_timer_fd), format_(frames.format()),
+      : config_(config),
+        frames_(frames),
+        can_in_(can_in),
+        ecu_(ecu),
+        stop_fd_(stop_fd),
+        pacing_timer_fd_(pacing_timer_fd),
+        format_(frames.format()),
         status_period_(std::chrono::milliseconds(config.status_period_ms)),
         next_status_(status_period_) {}
 
@@ -127,7 +132,9 @@ class FileRun {
   bool wait_for_deadline(std::uint64_t k, nanoseconds t);
   void count_unused_can_frames();
   bool input_error(const std::string& message);
-  void poll_stop() { if (stop_signal_ == 0) stop_signal_ = detail::pending_stop_signal(stop_fd_); }
+  void poll_stop() {
+    if (stop_signal_ == 0) stop_signal_ = detail::pending_stop_signal(stop_fd_);
+  }
 
   const EcuConfig& config_;
   io::Y4mReader& frames_;
@@ -173,9 +180,14 @@ void FileRun::read_next_can() {
     case can::CandumpLogReader::Status::Frame:
       have_next_ = check_can_stamp(nanoseconds(next_.frame.timestamp_ns));
       break;
-    case can::CandumpLogReader::Status::End: break;
-    case can::CandumpLogReader::Status::Stopped: poll_stop(); break;
-    case can::CandumpLogReader::Status::Error: input_error(can_in_.error()); break;
+    case can::CandumpLogReader::Status::End:
+      break;
+    case can::CandumpLogReader::Status::Stopped:
+      poll_stop();
+      break;
+    case can::CandumpLogReader::Status::Error:
+      input_error(can_in_.error());
+      break;
   }
 }
 
@@ -234,8 +246,14 @@ int FileRun::run(DetectionsCsv& detections_csv) {
     if (failed_ || stop_signal_ != 0) break;
     const io::Y4mRead read = frames_.read_frame(std::span<std::uint8_t>(grey.data, grey.total()));
     if (read == io::Y4mRead::kEnd) break;
-    if (read == io::Y4mRead::kStopped) { poll_stop(); break; }
-    if (read == io::Y4mRead::kError) { input_error(frames_.error()); break; }
+    if (read == io::Y4mRead::kStopped) {
+      poll_stop();
+      break;
+    }
+    if (read == io::Y4mRead::kError) {
+      input_error(frames_.error());
+      break;
+    }
     last_time = t;
     if (k < config_.first_frame) continue;  // before this drive: only the odometry counts
     if (config_.frame_count > 0 && k >= config_.first_frame + config_.frame_count) break;
@@ -249,8 +267,9 @@ int FileRun::run(DetectionsCsv& detections_csv) {
     poll_stop();
   }
   if (!failed_ && stop_signal_ == 0 && config_.first_frame > 0 && k <= config_.first_frame)
-    input_error(config_.camera.file + ": --first-frame (file.first_frame) is " + std::to_string(config_.first_frame) +
-                ", but the file ends after " + std::to_string(k) + " frames");
+    input_error(config_.camera.file + ": --first-frame (file.first_frame) is " +
+                std::to_string(config_.first_frame) + ", but the file ends after " + std::to_string(k) +
+                " frames");
   if (!failed_ && stop_signal_ == 0) {
     // End of the recording: the rest of the log. Tracks still in view are
     // left unfinished, as when the car stops: committing them cut short
@@ -295,7 +314,8 @@ bool close_outputs(const EcuConfig& config, const Ecu& ecu, can::CandumpLogWrite
                    DetectionsCsv& detections_csv) {
   bool ok = true;
   if (!config.landmarks_out.empty() && !write_landmarks_csv(config.landmarks_out, ecu.engine().database())) {
-    std::fprintf(stderr, "markloop: %s: cannot write: %s\n", config.landmarks_out.c_str(), std::strerror(errno));
+    std::fprintf(stderr, "markloop: %s: cannot write: %s\n", config.landmarks_out.c_str(),
+                 std::strerror(errno));
     ok = false;
   }
   if (auto ec = can_out.close()) {
@@ -320,8 +340,8 @@ int run_file_mode(const RunOptions& options) {
   if (const int status = open_files(options, frames, can_in, can_out, detections_csv); status != 0)
     return status;
   const io::Y4mFormat format = frames.format();
-  config.camera.fps = static_cast<unsigned>(
-      std::max(1L, std::lround(double(format.fps_numerator) / format.fps_denominator)));
+  config.camera.fps =
+      static_cast<unsigned>(std::max(1L, std::lround(double(format.fps_numerator) / format.fps_denominator)));
 
   Ecu ecu(config, options.camera, options.detector, nullptr, can_out.is_open() ? &can_out : nullptr);
   const platform::UniqueFd signals = detail::open_stop_signals();
@@ -348,7 +368,8 @@ int run_file_mode(const RunOptions& options) {
   const bool saved = detail::shut_down(ecu, config, options.quiet);
   const bool closed = close_outputs(config, ecu, can_out, detections_csv);
   const double wall = std::chrono::duration<double>(platform::monotonic_now() - wall_start).count();
-  const bool reported = detail::report(ecu, options, wall, config.realtime_replay ? "file (realtime)" : "file");
+  const bool reported =
+      detail::report(ecu, options, wall, config.realtime_replay ? "file (realtime)" : "file");
   if (exit_status == 0 && !(saved && closed && reported)) exit_status = 1;
   return exit_status;
 }

@@ -14,11 +14,11 @@
 
 #include <opencv2/core.hpp>
 
+#include "app/ecu/runner.hpp"
+#include "dbc/markloop_messages.hpp"
 #include "drivers/can/candump_log.hpp"
 #include "drivers/can/socketcan.hpp"
 #include "drivers/v4l2/v4l2_camera.hpp"
-#include "app/ecu/runner.hpp"
-#include "dbc/markloop_messages.hpp"
 #include "platform/os.hpp"
 
 namespace markloop::ecu {
@@ -70,8 +70,8 @@ int run_live_mode(const RunOptions& options) {
   camera_config.input = config.camera.input;
   camera_config.width = static_cast<std::uint32_t>(options.camera.width());
   camera_config.height = static_cast<std::uint32_t>(options.camera.height());
-  camera_config.format = config.camera.format == PixelFormat::kGrey ? v4l2::PixelFormat::Grey
-                                                                     : v4l2::PixelFormat::Yuyv;
+  camera_config.format =
+      config.camera.format == PixelFormat::kGrey ? v4l2::PixelFormat::Grey : v4l2::PixelFormat::Yuyv;
   camera_config.fps = config.camera.fps;
   camera_config.frame_timeout = milliseconds(config.camera.timeout_ms);
   if (auto ec = v4l2::V4l2Camera::validate(camera_config)) {
@@ -110,15 +110,17 @@ int run_live_mode(const RunOptions& options) {
     if (camera.state() == v4l2::V4l2Camera::State::Closed && now >= next_camera_attempt) {
       if (auto ec = camera.start(camera_config)) {
         next_camera_attempt = now + kReopenInterval;
-        if (!quiet) std::fprintf(stderr, "markloop: camera %s: %s (retrying)\n",
-                                 config.camera.device.c_str(), ec.message().c_str());
+        if (!quiet)
+          std::fprintf(stderr, "markloop: camera %s: %s (retrying)\n", config.camera.device.c_str(),
+                       ec.message().c_str());
       }
     }
     if (can_bus.state() == can::SocketCan::State::Closed && now >= next_can_attempt) {
       if (auto ec = can_bus.open(config.can.interface, filters)) {
         next_can_attempt = now + kReopenInterval;
-        if (!quiet) std::fprintf(stderr, "markloop: CAN %s: %s (retrying)\n",
-                                 config.can.interface.c_str(), ec.message().c_str());
+        if (!quiet)
+          std::fprintf(stderr, "markloop: CAN %s: %s (retrying)\n", config.can.interface.c_str(),
+                       ec.message().c_str());
       }
     }
   };

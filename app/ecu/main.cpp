@@ -8,9 +8,9 @@
 
 #include "app/common/cli.hpp"
 #include "app/common/memory_check.hpp"
-#include "app/tools/common/tool_files.hpp"
 #include "app/ecu/config.hpp"
 #include "app/ecu/runner.hpp"
+#include "app/tools/common/tool_files.hpp"
 
 namespace {
 
@@ -64,8 +64,10 @@ stood after the last whole frame). See docs/inputs-and-faults.md.
 std::string overlapping_files(const markloop::ecu::EcuConfig& config, const std::string& summary,
                               const std::string& config_file) {
   using Role = std::pair<const char*, const std::string*>;
-  const Role inputs[] = {{"--camera-file", &config.camera.file}, {"--can-in", &config.can.in_log},
-                         {"--calibration", &config.calibration}, {"--config", &config_file},
+  const Role inputs[] = {{"--camera-file", &config.camera.file},
+                         {"--can-in", &config.can.in_log},
+                         {"--calibration", &config.calibration},
+                         {"--config", &config_file},
                          {"--map", &config.map_file}};
   const Role outputs[] = {{"--map", &config.map_file},
                           {"--can-out", &config.can.out_log},
@@ -109,33 +111,55 @@ int main(int argc, char** argv) {
   }
   bool print_config = false;
   const auto set = [&](const char* key, const char* value) {
-    if (std::string error = markloop::ecu::set_config_value(config, key, value); !error.empty())
-      fail(error);
+    if (std::string error = markloop::ecu::set_config_value(config, key, value); !error.empty()) fail(error);
   };
   for (int i = 1; i < argc; ++i) {
     const std::string_view arg = argv[i];
-    if (arg == "--realtime") { config.realtime_replay = true; continue; }
-    if (arg == "--print-config") { print_config = true; continue; }
-    if (arg == "--quiet") { options.quiet = true; continue; }
+    if (arg == "--realtime") {
+      config.realtime_replay = true;
+      continue;
+    }
+    if (arg == "--print-config") {
+      print_config = true;
+      continue;
+    }
+    if (arg == "--quiet") {
+      options.quiet = true;
+      continue;
+    }
     const char* value = markloop::cli::option_value(
         argc, argv, i,
         {"--config", "--camera-device", "--camera-file", "--can-interface", "--can-in", "--can-out",
          "--calibration", "--map", "--detections-out", "--landmarks-out", "--k", "--first-frame", "--frames",
          "--summary", "--set"});
-    if (arg == "--config") continue;
-    else if (arg == "--camera-device") set("camera.device", value);
-    else if (arg == "--camera-file") set("camera.file", value);
-    else if (arg == "--can-interface") set("can.interface", value);
-    else if (arg == "--can-in") set("can.in_log", value);
-    else if (arg == "--can-out") set("can.out_log", value);
-    else if (arg == "--calibration") set("calibration", value);
-    else if (arg == "--map") set("map.file", value);
-    else if (arg == "--detections-out") set("detections_out", value);
-    else if (arg == "--landmarks-out") set("landmarks_out", value);
-    else if (arg == "--k") set("engine.k", value);
-    else if (arg == "--first-frame") set("file.first_frame", value);
-    else if (arg == "--frames") set("file.frames", value);
-    else if (arg == "--summary") options.summary_json = value;
+    if (arg == "--config")
+      continue;
+    else if (arg == "--camera-device")
+      set("camera.device", value);
+    else if (arg == "--camera-file")
+      set("camera.file", value);
+    else if (arg == "--can-interface")
+      set("can.interface", value);
+    else if (arg == "--can-in")
+      set("can.in_log", value);
+    else if (arg == "--can-out")
+      set("can.out_log", value);
+    else if (arg == "--calibration")
+      set("calibration", value);
+    else if (arg == "--map")
+      set("map.file", value);
+    else if (arg == "--detections-out")
+      set("detections_out", value);
+    else if (arg == "--landmarks-out")
+      set("landmarks_out", value);
+    else if (arg == "--k")
+      set("engine.k", value);
+    else if (arg == "--first-frame")
+      set("file.first_frame", value);
+    else if (arg == "--frames")
+      set("file.frames", value);
+    else if (arg == "--summary")
+      options.summary_json = value;
     else if (arg == "--set") {
       const char* equals = std::strchr(value, '=');
       if (equals == nullptr) fail("--set needs KEY=VALUE, got '" + std::string(value) + "'");
@@ -148,9 +172,9 @@ int main(int argc, char** argv) {
   if (std::string error = markloop::ecu::validate_config(config); !error.empty()) fail(error);
   if (std::string error = overlapping_files(config, options.summary_json, config_file); !error.empty())
     fail(error);
-  if (std::string error = markloop::cli::database_memory_error(
-          config.engine.database, config.engine.chain.k, "database.landmark_capacity",
-          "database.sequence_capacity");
+  if (std::string error =
+          markloop::cli::database_memory_error(config.engine.database, config.engine.chain.k,
+                                               "database.landmark_capacity", "database.sequence_capacity");
       !error.empty())
     fail(error);
   if (print_config) {
@@ -163,8 +187,7 @@ int main(int argc, char** argv) {
     auto camera = markloop::perception::load_camera_model(config.calibration, error);
     if (!camera) fail(error);
     options.camera = *camera;
-    if (!markloop::perception::load_detector_config(config.calibration, options.detector, error))
-      fail(error);
+    if (!markloop::perception::load_detector_config(config.calibration, options.detector, error)) fail(error);
   }
   // The detector reports nothing under its own threshold, so a gate set
   // lower would let no more through: say so instead of ignoring it.
@@ -178,8 +201,7 @@ int main(int argc, char** argv) {
     fail(text);
   }
   try {
-    return config.file_mode() ? markloop::ecu::run_file_mode(options)
-                              : markloop::ecu::run_live_mode(options);
+    return config.file_mode() ? markloop::ecu::run_file_mode(options) : markloop::ecu::run_live_mode(options);
   } catch (const std::bad_alloc&) {
     // The database's size is checked above; this is the last resort.
     fail("out of memory while starting (lower database.landmark_capacity or database.sequence_capacity)");

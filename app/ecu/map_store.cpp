@@ -32,9 +32,15 @@ void put32(std::uint8_t* p, std::uint32_t v) {
 void put64(std::uint8_t* p, std::uint64_t v) {
   for (int i = 0; i < 8; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
 }
-void putf(std::uint8_t* p, float v) { put32(p, std::bit_cast<std::uint32_t>(v)); }
-void putd(std::uint8_t* p, double v) { put64(p, std::bit_cast<std::uint64_t>(v)); }
-std::uint16_t get16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
+void putf(std::uint8_t* p, float v) {
+  put32(p, std::bit_cast<std::uint32_t>(v));
+}
+void putd(std::uint8_t* p, double v) {
+  put64(p, std::bit_cast<std::uint64_t>(v));
+}
+std::uint16_t get16(const std::uint8_t* p) {
+  return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
+}
 std::uint32_t get32(const std::uint8_t* p) {
   std::uint32_t v = 0;
   for (int i = 3; i >= 0; --i) v = (v << 8) | p[i];
@@ -45,8 +51,12 @@ std::uint64_t get64(const std::uint8_t* p) {
   for (int i = 7; i >= 0; --i) v = (v << 8) | p[i];
   return v;
 }
-float getf(const std::uint8_t* p) { return std::bit_cast<float>(get32(p)); }
-double getd(const std::uint8_t* p) { return std::bit_cast<double>(get64(p)); }
+float getf(const std::uint8_t* p) {
+  return std::bit_cast<float>(get32(p));
+}
+double getd(const std::uint8_t* p) {
+  return std::bit_cast<double>(get64(p));
+}
 
 void encode_landmark(const Landmark& l, std::uint8_t* p) {
   put16(p + 0, l.label);
@@ -115,7 +125,9 @@ bool serialise_payload(const SequenceDatabase& database, std::span<std::uint8_t>
   return ok;
 }
 
-std::string describe(std::error_code ec) { return ec.message(); }
+std::string describe(std::error_code ec) {
+  return ec.message();
+}
 
 const char* file_type_name(mode_t mode) {
   if (S_ISDIR(mode)) return "a directory";
@@ -277,7 +289,8 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
   struct stat info {};
   if (::fstat(fd, &info) != 0) return unusable("cannot stat: " + describe(platform::last_error()));
   if (!S_ISREG(info.st_mode))
-    return unusable(std::string("is ") + file_type_name(info.st_mode) + ", not a map file: refusing to use it");
+    return unusable(std::string("is ") + file_type_name(info.st_mode) +
+                    ", not a map file: refusing to use it");
   const auto file_bytes = static_cast<std::uint64_t>(info.st_size);
   std::array<std::uint8_t, kMapHeaderBytes> header{};
   std::size_t got = 0;
@@ -300,8 +313,9 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
   if (get32(&header[12]) != kMapHeaderBytes || get32(&header[20]) != kMapLandmarkBytes)
     return reject("unexpected header or record size");
   if (k != database.k())
-    return unusable("map made with k = " + std::to_string(k) + ", this ECU uses k = " +
-                    std::to_string(database.k()) + "; the map is left as it is (set engine.k to match, or "
+    return unusable("map made with k = " + std::to_string(k) +
+                    ", this ECU uses k = " + std::to_string(database.k()) +
+                    "; the map is left as it is (set engine.k to match, or "
                     "use another map file)");
   const std::uint64_t landmark_count = get64(&header[24]);
   const std::uint64_t sequence_count = get64(&header[32]);
@@ -330,8 +344,8 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
   double max_station = -1.0e300, max_t = -1.0e300;
   Landmark landmark;
   for (std::uint64_t done = 0; done < landmark_count;) {
-    const std::size_t n =
-        static_cast<std::size_t>(std::min<std::uint64_t>(landmark_count - done, landmark_chunk / kMapLandmarkBytes));
+    const std::size_t n = static_cast<std::size_t>(
+        std::min<std::uint64_t>(landmark_count - done, landmark_chunk / kMapLandmarkBytes));
     if (auto ec = platform::read_full(fd, buffer_.data(), n * kMapLandmarkBytes, got))
       return reject("read error: " + describe(ec));
     if (got != n * kMapLandmarkBytes) return reject("file shrank while reading");
@@ -345,8 +359,8 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
     done += n;
   }
   for (std::uint64_t done = 0; done < sequence_count;) {
-    const std::size_t n =
-        static_cast<std::size_t>(std::min<std::uint64_t>(sequence_count - done, sequence_chunk / sequence_bytes));
+    const std::size_t n = static_cast<std::size_t>(
+        std::min<std::uint64_t>(sequence_count - done, sequence_chunk / sequence_bytes));
     if (auto ec = platform::read_full(fd, buffer_.data(), n * sequence_bytes, got))
       return reject("read error: " + describe(ec));
     if (got != n * sequence_bytes) return reject("file shrank while reading");
@@ -367,8 +381,8 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
   database.clear();
   const LandmarkId base = database.next_landmark_id();
   for (std::uint64_t done = 0; done < landmark_count;) {
-    const std::size_t n =
-        static_cast<std::size_t>(std::min<std::uint64_t>(landmark_count - done, landmark_chunk / kMapLandmarkBytes));
+    const std::size_t n = static_cast<std::size_t>(
+        std::min<std::uint64_t>(landmark_count - done, landmark_chunk / kMapLandmarkBytes));
     if (platform::read_full(fd, buffer_.data(), n * kMapLandmarkBytes, got) || got != n * kMapLandmarkBytes) {
       database.clear();
       return reject("file changed while loading");
@@ -384,15 +398,14 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
   std::array<LandmarkId, kMaxSequenceLength> ids{};
   std::size_t sequences_loaded = 0;
   for (std::uint64_t done = 0; done < sequence_count;) {
-    const std::size_t n =
-        static_cast<std::size_t>(std::min<std::uint64_t>(sequence_count - done, sequence_chunk / sequence_bytes));
+    const std::size_t n = static_cast<std::size_t>(
+        std::min<std::uint64_t>(sequence_count - done, sequence_chunk / sequence_bytes));
     if (platform::read_full(fd, buffer_.data(), n * sequence_bytes, got) || got != n * sequence_bytes) {
       database.clear();
       return reject("file changed while loading");
     }
     for (std::size_t s = 0; s < n; ++s) {
-      for (unsigned i = 0; i < k; ++i)
-        ids[i] = base + get32(&buffer_[s * sequence_bytes + 4 * i]);
+      for (unsigned i = 0; i < k; ++i) ids[i] = base + get32(&buffer_[s * sequence_bytes + 4 * i]);
       // False when the database is smaller than the map and evicted a landmark.
       if (database.add_sequence(std::span<const LandmarkId>(ids.data(), k))) ++sequences_loaded;
     }

@@ -54,8 +54,8 @@ enum class MapLoadOutcome : std::uint8_t { kLoaded, kMissing, kRejected, kUnusab
 
 struct MapLoadResult {
   MapLoadOutcome outcome = MapLoadOutcome::kMissing;
-  std::string message;          // what was loaded, or what is wrong with the file
-  std::string set_aside_path;   // where a rejected file went (empty if not moved)
+  std::string message;         // what was loaded, or what is wrong with the file
+  std::string set_aside_path;  // where a rejected file went (empty if not moved)
   std::size_t landmarks = 0;
   std::size_t sequences = 0;
 };
@@ -90,8 +90,8 @@ class MapStore {
   MapLoadResult unusable(const std::string& what) const;
   MapLoadResult read_file(int fd, SequenceDatabase& database, const MatchConfig& match);
 
-  std::string path_;            // as configured, for messages
-  std::string target_;          // the file itself (a link's target)
+  std::string path_;    // as configured, for messages
+  std::string target_;  // the file itself (a link's target)
   std::string temporary_template_;
   std::array<char, 4096> temporary_path_{};
   platform::UniqueFd lock_;

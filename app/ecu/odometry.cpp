@@ -7,7 +7,9 @@ namespace markloop::ecu {
 
 namespace {
 constexpr double kDegToRad = std::numbers::pi / 180.0;
-double seconds(Nanoseconds d) { return std::chrono::duration<double>(d).count(); }
+double seconds(Nanoseconds d) {
+  return std::chrono::duration<double>(d).count();
+}
 }  // namespace
 
 dbc::DecodeError OdometryIntegrator::receive(std::span<const std::uint8_t> payload,
@@ -17,12 +19,21 @@ dbc::DecodeError OdometryIntegrator::receive(std::span<const std::uint8_t> paylo
   dbc::VehicleOdometry message;
   const dbc::DecodeError error = dbc::decode(payload, e2e_, message);
   switch (error) {
-    case dbc::DecodeError::None: break;
-    case dbc::DecodeError::WrongLength: ++counters_.wrong_length; break;
-    case dbc::DecodeError::BadCrc: ++counters_.bad_crc; break;
-    case dbc::DecodeError::BadCounter: ++counters_.bad_counter; break;
+    case dbc::DecodeError::None:
+      break;
+    case dbc::DecodeError::WrongLength:
+      ++counters_.wrong_length;
+      break;
+    case dbc::DecodeError::BadCrc:
+      ++counters_.bad_crc;
+      break;
+    case dbc::DecodeError::BadCounter:
+      ++counters_.bad_counter;
+      break;
     case dbc::DecodeError::OutOfRange:
-    case dbc::DecodeError::UnknownPage: ++counters_.out_of_range; break;
+    case dbc::DecodeError::UnknownPage:
+      ++counters_.out_of_range;
+      break;
   }
   if (error != dbc::DecodeError::None) {
     ++rejections_;
@@ -75,8 +86,7 @@ Pose2 OdometryIntegrator::pose_at(Nanoseconds now) const noexcept {
   if (!have_sample_ || now <= last_stamp_) return pose_;
   const double dt = seconds(now - last_stamp_);
   const double mid_yaw = pose_.yaw + 0.5 * last_yaw_rate_ * dt;
-  return {pose_.x + last_speed_ * std::cos(mid_yaw) * dt,
-          pose_.y + last_speed_ * std::sin(mid_yaw) * dt,
+  return {pose_.x + last_speed_ * std::cos(mid_yaw) * dt, pose_.y + last_speed_ * std::sin(mid_yaw) * dt,
           wrap_angle(pose_.yaw + last_yaw_rate_ * dt)};
 }
 

@@ -53,8 +53,7 @@ bool start_up(Ecu& ecu, const EcuConfig& config, bool quiet) {
   // Everything is allocated now: keep it in RAM, then take the CPU.
   if (config.realtime.lock_memory) {
     if (auto ec = platform::lock_all_memory())
-      std::fprintf(stderr, "markloop: mlockall not permitted (%s): running unlocked\n",
-                   ec.message().c_str());
+      std::fprintf(stderr, "markloop: mlockall not permitted (%s): running unlocked\n", ec.message().c_str());
   }
   if (config.realtime.cpu >= 0) {
     if (auto ec = platform::pin_to_cpu(config.realtime.cpu))
@@ -84,7 +83,9 @@ bool shut_down(Ecu& ecu, const EcuConfig& config, bool quiet) {
 }
 
 namespace {
-double ms(std::int64_t ns) { return double(ns) / 1e6; }
+double ms(std::int64_t ns) {
+  return double(ns) / 1e6;
+}
 }  // namespace
 
 namespace {
@@ -107,16 +108,15 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                  "dropped, %llu above the rate, %llu overruns, %llu detections, %llu loop detections "
                  "sent\n",
                  mode, wall_seconds, (unsigned long long)c.frames_processed,
-                 (unsigned long long)c.frames_blind,
-                 (unsigned long long)c.frames_dropped, (unsigned long long)c.frames_over_rate,
-                 (unsigned long long)c.overruns,
+                 (unsigned long long)c.frames_blind, (unsigned long long)c.frames_dropped,
+                 (unsigned long long)c.frames_over_rate, (unsigned long long)c.overruns,
                  (unsigned long long)c.detections, (unsigned long long)c.loop_detections);
     std::fprintf(stderr,
                  "markloop: per frame (ms, 10 us bins) detect median %.2f p99 %.2f | engine median "
                  "%.3f p99 %.3f | total median %.2f p99 %.2f max %.2f\n",
-                 ms(detect.quantile_ns(0.5)), ms(detect.quantile_ns(0.99)),
-                 ms(engine.quantile_ns(0.5)), ms(engine.quantile_ns(0.99)),
-                 ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)), ms(frame.max_ns()));
+                 ms(detect.quantile_ns(0.5)), ms(detect.quantile_ns(0.99)), ms(engine.quantile_ns(0.5)),
+                 ms(engine.quantile_ns(0.99)), ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)),
+                 ms(frame.max_ns()));
     std::fprintf(stderr,
                  "markloop: odometry %llu accepted, %llu bad CRC, %llu bad counter, %llu wrong length, "
                  "%llu out of range, %llu invalid signals, %llu out of order, %llu timeouts; "
@@ -128,9 +128,8 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                  (unsigned long long)odo.out_of_range, (unsigned long long)odo.invalid_signals,
                  (unsigned long long)odo.out_of_order, (unsigned long long)odo.timeouts,
                  (unsigned long long)c.bad_frames, (unsigned long long)c.commands_rejected,
-                 (unsigned long long)c.foreign_frames, (unsigned long long)c.can_frames_unused,
-                 db.landmarks, db.sequences,
-                 double(rss) / (1024.0 * 1024.0));
+                 (unsigned long long)c.foreign_frames, (unsigned long long)c.can_frames_unused, db.landmarks,
+                 db.sequences, double(rss) / (1024.0 * 1024.0));
     const perception::DetectorCounters& d = ecu.detector().counters();
     std::fprintf(stderr,
                  "markloop: detector %llu parts, %llu lane lines, %llu candidates, %llu rejected, "
@@ -142,30 +141,27 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                  "%llu), moved %llu times, now %d rows\n",
                  (unsigned long long)d.parts, (unsigned long long)d.lane_lines,
                  (unsigned long long)d.candidates, (unsigned long long)d.rejected,
-                 (unsigned long long)d.low_score, (unsigned long long)d.pieces,
-                 (unsigned long long)d.joined, (unsigned long long)d.clipped,
-                 (unsigned long long)d.beyond_region,
+                 (unsigned long long)d.low_score, (unsigned long long)d.pieces, (unsigned long long)d.joined,
+                 (unsigned long long)d.clipped, (unsigned long long)d.beyond_region,
                  (unsigned long long)d.bad_frames, (unsigned long long)d.flat_frames,
                  (unsigned long long)d.noisy_frames, (unsigned long long)d.cluttered_frames,
                  (unsigned long long)d.detections_withheld, (unsigned long long)d.parts_dropped,
                  (unsigned long long)d.candidates_dropped, (unsigned long long)d.strokes_dropped,
-                 (unsigned long long)d.horizon_measured,
-                 (unsigned long long)d.horizon_unmeasured, (unsigned long long)d.horizon_moves,
-                 ecu.detector().horizon_shift());
+                 (unsigned long long)d.horizon_measured, (unsigned long long)d.horizon_unmeasured,
+                 (unsigned long long)d.horizon_moves, ecu.detector().horizon_shift());
     const EngineCounters& e = ecu.engine().counters();
-    std::fprintf(stderr,
-                 "markloop: engine %llu sequences, %llu candidates, %llu too recent, %llu residual, "
-                 "%llu drift, %llu frames apart, %llu loaded-map single sequences, "
-                 "%llu loaded-map hypotheses, %llu loaded-map disagreeing, "
-                 "%llu matches (%llu with the pose refined over a run)\n",
-                 (unsigned long long)e.sequences_created, (unsigned long long)e.candidates,
-                 (unsigned long long)e.candidates_too_recent,
-                 (unsigned long long)e.candidates_rejected_residual,
-                 (unsigned long long)e.candidates_rejected_drift,
-                 (unsigned long long)e.candidates_rejected_frames_apart,
-                 (unsigned long long)e.loaded_single_sequences,
-                 (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
-                 (unsigned long long)e.matches, (unsigned long long)e.closures_extended);
+    std::fprintf(
+        stderr,
+        "markloop: engine %llu sequences, %llu candidates, %llu too recent, %llu residual, "
+        "%llu drift, %llu frames apart, %llu loaded-map single sequences, "
+        "%llu loaded-map hypotheses, %llu loaded-map disagreeing, "
+        "%llu matches (%llu with the pose refined over a run)\n",
+        (unsigned long long)e.sequences_created, (unsigned long long)e.candidates,
+        (unsigned long long)e.candidates_too_recent, (unsigned long long)e.candidates_rejected_residual,
+        (unsigned long long)e.candidates_rejected_drift,
+        (unsigned long long)e.candidates_rejected_frames_apart, (unsigned long long)e.loaded_single_sequences,
+        (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
+        (unsigned long long)e.matches, (unsigned long long)e.closures_extended);
   }
   return write_summary(ecu, options, wall_seconds, mode, rss);
 }
@@ -189,38 +185,36 @@ bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_second
     std::fprintf(stderr, "markloop: %s: out of memory\n", options.summary_json.c_str());
     return false;
   }
-  std::fprintf(out,
-               "{\"mode\": \"%s\", \"wall_s\": %.3f, \"frames_processed\": %llu, \"frames_dropped\": %llu,"
-               " \"overruns\": %llu, \"detections\": %llu, \"loop_detections\": %llu,"
-               " \"frames_without_pose\": %llu, \"frames_blind\": %llu, \"pose_losses\": %llu,"
-               " \"foreign_frames\": %llu, \"bad_frames\": %llu, \"commands_rejected\": %llu,"
-               " \"can_frames_unused\": %llu, \"odometry_wrong_length\": %llu,"
-               " \"odometry_out_of_range\": %llu, \"odometry_invalid_signals\": %llu,"
-               " \"odometry_out_of_order\": %llu,"
-               " \"send_errors\": %llu, \"odometry_accepted\": %llu, \"odometry_bad_crc\": %llu,"
-               " \"odometry_bad_counter\": %llu, \"odometry_timeouts\": %llu,"
-               " \"detect_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
-               " \"engine_ms\": {\"median\": %.4f, \"p99\": %.4f, \"max\": %.4f},"
-               " \"frame_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
-               " \"latency_ms\": {\"count\": %llu, \"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
-               " \"landmarks\": %zu, \"sequences\": %zu, \"rss_bytes\": %zu,",
-               mode, wall_seconds, (unsigned long long)c.frames_processed,
-               (unsigned long long)c.frames_dropped, (unsigned long long)c.overruns,
-               (unsigned long long)c.detections, (unsigned long long)c.loop_detections,
-               (unsigned long long)c.frames_without_pose, (unsigned long long)c.frames_blind,
-               (unsigned long long)c.pose_losses,
-               (unsigned long long)c.foreign_frames, (unsigned long long)c.bad_frames,
-               (unsigned long long)c.commands_rejected, (unsigned long long)c.can_frames_unused,
-               (unsigned long long)odo.wrong_length, (unsigned long long)odo.out_of_range,
-               (unsigned long long)odo.invalid_signals, (unsigned long long)odo.out_of_order,
-               (unsigned long long)c.send_errors,
-               (unsigned long long)odo.accepted, (unsigned long long)odo.bad_crc,
-               (unsigned long long)odo.bad_counter, (unsigned long long)odo.timeouts,
-               ms(detect.quantile_ns(0.5)), ms(detect.quantile_ns(0.99)), ms(detect.max_ns()),
-               ms(engine.quantile_ns(0.5)), ms(engine.quantile_ns(0.99)), ms(engine.max_ns()),
-               ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)), ms(frame.max_ns()),
-               (unsigned long long)latency.count(), ms(latency.quantile_ns(0.5)),
-               ms(latency.quantile_ns(0.99)), ms(latency.max_ns()), db.landmarks, db.sequences, rss);
+  std::fprintf(
+      out,
+      "{\"mode\": \"%s\", \"wall_s\": %.3f, \"frames_processed\": %llu, \"frames_dropped\": %llu,"
+      " \"overruns\": %llu, \"detections\": %llu, \"loop_detections\": %llu,"
+      " \"frames_without_pose\": %llu, \"frames_blind\": %llu, \"pose_losses\": %llu,"
+      " \"foreign_frames\": %llu, \"bad_frames\": %llu, \"commands_rejected\": %llu,"
+      " \"can_frames_unused\": %llu, \"odometry_wrong_length\": %llu,"
+      " \"odometry_out_of_range\": %llu, \"odometry_invalid_signals\": %llu,"
+      " \"odometry_out_of_order\": %llu,"
+      " \"send_errors\": %llu, \"odometry_accepted\": %llu, \"odometry_bad_crc\": %llu,"
+      " \"odometry_bad_counter\": %llu, \"odometry_timeouts\": %llu,"
+      " \"detect_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
+      " \"engine_ms\": {\"median\": %.4f, \"p99\": %.4f, \"max\": %.4f},"
+      " \"frame_ms\": {\"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
+      " \"latency_ms\": {\"count\": %llu, \"median\": %.3f, \"p99\": %.3f, \"max\": %.3f},"
+      " \"landmarks\": %zu, \"sequences\": %zu, \"rss_bytes\": %zu,",
+      mode, wall_seconds, (unsigned long long)c.frames_processed, (unsigned long long)c.frames_dropped,
+      (unsigned long long)c.overruns, (unsigned long long)c.detections, (unsigned long long)c.loop_detections,
+      (unsigned long long)c.frames_without_pose, (unsigned long long)c.frames_blind,
+      (unsigned long long)c.pose_losses, (unsigned long long)c.foreign_frames,
+      (unsigned long long)c.bad_frames, (unsigned long long)c.commands_rejected,
+      (unsigned long long)c.can_frames_unused, (unsigned long long)odo.wrong_length,
+      (unsigned long long)odo.out_of_range, (unsigned long long)odo.invalid_signals,
+      (unsigned long long)odo.out_of_order, (unsigned long long)c.send_errors,
+      (unsigned long long)odo.accepted, (unsigned long long)odo.bad_crc, (unsigned long long)odo.bad_counter,
+      (unsigned long long)odo.timeouts, ms(detect.quantile_ns(0.5)), ms(detect.quantile_ns(0.99)),
+      ms(detect.max_ns()), ms(engine.quantile_ns(0.5)), ms(engine.quantile_ns(0.99)), ms(engine.max_ns()),
+      ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)), ms(frame.max_ns()),
+      (unsigned long long)latency.count(), ms(latency.quantile_ns(0.5)), ms(latency.quantile_ns(0.99)),
+      ms(latency.max_ns()), db.landmarks, db.sequences, rss);
   // Where the engine's candidates went, and its rarer events.
   const EngineCounters& e = ecu.engine().counters();
   const std::pair<const char*, std::uint64_t> engine_counters[] = {
@@ -252,9 +246,9 @@ bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_second
                  (unsigned long long)engine_counters[i].second);
   std::fprintf(out, "}}\n");
   const bool formatted = std::fclose(out) == 0;
-  const std::error_code ec = formatted ? platform::write_file_replacing(options.summary_json.c_str(),
-                                                                       std::string_view(text, length))
-                                       : std::make_error_code(std::errc::not_enough_memory);
+  const std::error_code ec =
+      formatted ? platform::write_file_replacing(options.summary_json.c_str(), std::string_view(text, length))
+                : std::make_error_code(std::errc::not_enough_memory);
   std::free(text);
   if (ec) {
     std::fprintf(stderr, "markloop: %s: cannot write the summary: %s\n", options.summary_json.c_str(),

@@ -11,8 +11,7 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
 
   for (const Observation& obs : observations) {
     ++counters_.observations;
-    if (!std::isfinite(obs.x) || !std::isfinite(obs.y) || !std::isfinite(obs.weight) ||
-        obs.weight <= 0.0f) {
+    if (!std::isfinite(obs.x) || !std::isfinite(obs.y) || !std::isfinite(obs.weight) || obs.weight <= 0.0f) {
       ++counters_.observations_rejected;
       continue;
     }
@@ -91,8 +90,8 @@ bool LandmarkTracker::to_landmark(const Track& track, Landmark& out) {
     // Along-track station of the marking itself: where the car was when it
     // last saw it, plus how far ahead of the car it lies. This does not
     // depend on which frame happened to see it last.
-    const double ahead = (out.x - track.car.x) * std::cos(track.car.yaw) +
-                         (out.y - track.car.y) * std::sin(track.car.yaw);
+    const double ahead =
+        (out.x - track.car.x) * std::cos(track.car.yaw) + (out.y - track.car.y) * std::sin(track.car.yaw);
     out.station = track.odometer_last + ahead;
   }
   ++counters_.landmarks_committed;

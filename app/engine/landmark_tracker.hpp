@@ -11,8 +11,8 @@
 #include <cstdint>
 #include <span>
 
-#include "app/engine/config.hpp"
 #include "app/common/fixed_vector.hpp"
+#include "app/engine/config.hpp"
 #include "app/engine/types.hpp"
 
 namespace markloop {

@@ -10,7 +10,9 @@ namespace markloop {
 
 namespace {
 
-std::size_t power_of_two_at_least(std::size_t n) { return std::bit_ceil(std::max<std::size_t>(n, 2)); }
+std::size_t power_of_two_at_least(std::size_t n) {
+  return std::bit_ceil(std::max<std::size_t>(n, 2));
+}
 
 std::uint64_t mix(std::uint64_t h) {
   // splitmix64 finaliser: good avalanche, cheap, identical on every target.
@@ -37,8 +39,8 @@ DistanceQuantiser::DistanceQuantiser(const MatchConfig& config)
       growth_(static_cast<float>(rel_ / abs_m_)) {
   // One unit of log2 is 2^23 float ulps; one tolerance is rel * log2(e) of
   // log2 (relative growth), or abs_m metres without a relative part.
-  units_per_bin_ = config.index_bin_tolerances *
-                   (rel_ > 0.0 ? rel_ * std::numbers::log2e * 8388608.0 : abs_m_);
+  units_per_bin_ =
+      config.index_bin_tolerances * (rel_ > 0.0 ? rel_ * std::numbers::log2e * 8388608.0 : abs_m_);
 }
 
 std::uint32_t DistanceQuantiser::bin(double distance) const {
@@ -49,8 +51,7 @@ std::uint32_t DistanceQuantiser::bin(double distance) const {
   return static_cast<std::uint32_t>(ulps / units_per_bin_);
 }
 
-void DistanceQuantiser::bin_range(double distance, std::uint32_t& first,
-                                  std::uint32_t& last) const {
+void DistanceQuantiser::bin_range(double distance, std::uint32_t& first, std::uint32_t& last) const {
   // All d2 with |d - d2| <= abs + rel * max(d, d2).
   first = bin(distance * (1.0 - rel_) - abs_m_);
   last = bin((distance + abs_m_) / (1.0 - rel_));
@@ -64,8 +65,7 @@ bool DistanceQuantiser::within_tolerance(double a, double b) const {
   return std::abs(a - b) <= tolerance(a, b);
 }
 
-SequenceDatabase::SequenceDatabase(const DatabaseConfig& config, const MatchConfig& match,
-                                   unsigned k)
+SequenceDatabase::SequenceDatabase(const DatabaseConfig& config, const MatchConfig& match, unsigned k)
     : k_(k), quantiser_(match) {
   assert(k >= 2 && k <= kMaxSequenceLength);
   const std::size_t landmark_capacity = power_of_two_at_least(config.landmark_capacity);
@@ -141,8 +141,7 @@ std::uint64_t SequenceDatabase::label_hash(const SequenceShape& shape) const {
   return h;
 }
 
-std::uint32_t SequenceDatabase::key_tag(std::uint64_t label_hash,
-                                        std::span<const std::uint32_t> bins) {
+std::uint32_t SequenceDatabase::key_tag(std::uint64_t label_hash, std::span<const std::uint32_t> bins) {
   std::uint64_t h = label_hash;
   for (const std::uint32_t b : bins) h = mix(h ^ (std::uint64_t{b} << 16));
   return static_cast<std::uint32_t>(h >> 32);
@@ -158,8 +157,7 @@ std::uint32_t SequenceDatabase::find_slot(std::uint32_t tag) const {
 void SequenceDatabase::remove_slot(std::uint32_t hole) {
   // Backward-shift deletion: pull later entries of the probe run into the hole
   // when their home slot allows it, so lookups never need tombstones.
-  for (std::uint32_t j = (hole + 1) & slot_mask_; slots_[j].head != kNone;
-       j = (j + 1) & slot_mask_) {
+  for (std::uint32_t j = (hole + 1) & slot_mask_; slots_[j].head != kNone; j = (j + 1) & slot_mask_) {
     const std::uint32_t home = slots_[j].tag & slot_mask_;
     const bool movable = hole <= j ? (home <= hole || home > j) : (home <= hole && home > j);
     if (movable) {
@@ -203,8 +201,7 @@ void SequenceDatabase::add_sequence(std::span<const LandmarkId> ids, const Seque
   prefetch_eviction();
   std::array<std::uint32_t, kMaxSequenceLength> bins{};
   for (unsigned i = 1; i < k_; ++i) bins[i - 1] = quantiser_.bin(shape.distances[i]);
-  const std::uint32_t tag =
-      key_tag(label_hash(shape), std::span<const std::uint32_t>(bins.data(), k_ - 1));
+  const std::uint32_t tag = key_tag(label_hash(shape), std::span<const std::uint32_t>(bins.data(), k_ - 1));
 
   if (sequences_added_ - oldest_sequence_ > sequence_mask_) evict_oldest_sequence();
   const auto seq = static_cast<std::uint32_t>(sequences_added_ & sequence_mask_);
@@ -241,8 +238,7 @@ bool SequenceDatabase::shape_matches(const SequenceShape& query, std::uint32_t s
     const Landmark& current = landmarks_[ids[i] & landmark_mask_];
     if (current.label != query.labels[i]) return false;
     if (previous != nullptr) {
-      if (!quantiser_.within_tolerance(planar_distance(current, *previous), query.distances[i]))
-        return false;
+      if (!quantiser_.within_tolerance(planar_distance(current, *previous), query.distances[i])) return false;
     }
     previous = &current;
   }
@@ -259,8 +255,7 @@ DatabaseStats SequenceDatabase::stats() const {
   s.index_used = slots_used_;
   s.bytes_landmarks = landmarks_.size() * sizeof(Landmark);
   s.bytes_sequences = sequence_ids_.size() * sizeof(LandmarkId) +
-                      sequence_tag_.size() * 3 * sizeof(std::uint32_t) +
-                      slots_.size() * sizeof(Slot);
+                      sequence_tag_.size() * 3 * sizeof(std::uint32_t) + slots_.size() * sizeof(Slot);
   s.landmarks_evicted = landmarks_evicted_;
   s.sequences_evicted = sequences_evicted_;
   return s;

@@ -14,8 +14,8 @@
 #include <cstdint>
 #include <span>
 
-#include "app/engine/config.hpp"
 #include "app/common/large_array.hpp"
+#include "app/engine/config.hpp"
 #include "app/engine/types.hpp"
 
 namespace markloop {
@@ -66,8 +66,8 @@ class DistanceQuantiser {
  private:
   double abs_m_;
   double rel_;
-  float growth_;           // rel / abs
-  double units_per_bin_;   // g units (float ulps or metres) per bin
+  float growth_;          // rel / abs
+  double units_per_bin_;  // g units (float ulps or metres) per bin
 };
 
 class SequenceDatabase {
@@ -106,8 +106,7 @@ class SequenceDatabase {
   // `limit` of them; visit returns false to stop. Returns how many were seen;
   // sets `limited` when the limit cut the search short.
   template <typename Visitor>
-  unsigned for_each_match(const SequenceShape& query, unsigned limit, bool& limited,
-                          Visitor&& visit) const;
+  unsigned for_each_match(const SequenceShape& query, unsigned limit, bool& limited, Visitor&& visit) const;
 
   DatabaseStats stats() const;
   const DistanceQuantiser& quantiser() const { return quantiser_; }
@@ -180,8 +179,8 @@ class SequenceDatabase {
 };
 
 template <typename Visitor>
-unsigned SequenceDatabase::for_each_match(const SequenceShape& query, unsigned limit,
-                                          bool& limited, Visitor&& visit) const {
+unsigned SequenceDatabase::for_each_match(const SequenceShape& query, unsigned limit, bool& limited,
+                                          Visitor&& visit) const {
   limited = false;
   if (query.k != k_) return 0;
   // Each distance may fall into one or two bins; probe their product.
@@ -222,8 +221,7 @@ unsigned SequenceDatabase::for_each_match(const SequenceShape& query, unsigned l
         return seen;
       }
       ++seen;
-      if (!visit(std::span<const LandmarkId>(&sequence_ids_[std::size_t{seq} * k_], k_)))
-        return seen;
+      if (!visit(std::span<const LandmarkId>(&sequence_ids_[std::size_t{seq} * k_], k_))) return seen;
     }
   }
   return seen;

@@ -31,13 +31,11 @@ const char* validate(const EngineConfig& c) {
   if (c.chain.max_skipped_rows > 1) return "rows skipped must be 0 or 1";
   if (!finite_positive(c.tracker.association_radius_m))
     return "association radius must be a positive number of metres";
-  if (!finite_positive(c.tracker.commit_after_s))
-    return "commit delay must be a positive number of seconds";
+  if (!finite_positive(c.tracker.commit_after_s)) return "commit delay must be a positive number of seconds";
   if (c.tracker.min_observations < 1) return "minimum observations must be at least 1";
   if (!finite_non_negative(c.tracker.release_lag_m))
     return "release lag must be a non-negative number of metres";
-  if (!finite_non_negative(c.chain.row_width_m))
-    return "row width must be a non-negative number of metres";
+  if (!finite_non_negative(c.chain.row_width_m)) return "row width must be a non-negative number of metres";
   if (!std::isfinite(c.chain.max_link_m) || c.chain.max_link_m <= c.chain.row_width_m)
     return "maximum link distance must exceed the row width";
   if (!finite_positive(c.match.distance_tolerance_abs_m))
@@ -45,11 +43,9 @@ const char* validate(const EngineConfig& c) {
   if (!std::isfinite(c.match.distance_tolerance_rel) || c.match.distance_tolerance_rel < 0.0 ||
       c.match.distance_tolerance_rel > 0.1)
     return "relative distance tolerance must be between 0 and 0.1";
-  if (!finite_non_negative(c.match.min_separation_m) ||
-      !finite_non_negative(c.match.min_separation_s))
+  if (!finite_non_negative(c.match.min_separation_m) || !finite_non_negative(c.match.min_separation_s))
     return "minimum separation must be non-negative";
-  if (!finite_positive(c.match.max_residual_m))
-    return "maximum residual must be a positive number of metres";
+  if (!finite_positive(c.match.max_residual_m)) return "maximum residual must be a positive number of metres";
   // Narrower bins could let a tolerance interval straddle three bins.
   if (!std::isfinite(c.match.index_bin_tolerances) || c.match.index_bin_tolerances < 3.0 ||
       c.match.index_bin_tolerances > 1000.0)
@@ -59,10 +55,8 @@ const char* validate(const EngineConfig& c) {
       !finite_non_negative(c.match.max_drift_yaw_abs_deg) ||
       !finite_non_negative(c.match.max_drift_yaw_rel_deg_per_m))
     return "drift limits must be non-negative";
-  if (!finite_non_negative(c.match.max_frame_distance_m))
-    return "frame distance limit must be non-negative";
-  if (!finite_non_negative(c.match.confirm_within_m) ||
-      !finite_non_negative(c.match.confirm_min_gap_m))
+  if (!finite_non_negative(c.match.max_frame_distance_m)) return "frame distance limit must be non-negative";
+  if (!finite_non_negative(c.match.confirm_within_m) || !finite_non_negative(c.match.confirm_min_gap_m))
     return "confirmation distances must be non-negative";
   if (c.database.landmark_capacity < 16 || c.database.landmark_capacity > (std::size_t{1} << 30))
     return "landmark capacity must be between 16 and 2^30";
@@ -79,8 +73,8 @@ SequenceEngine::SequenceEngine(const EngineConfig& config)
       // landmarks released late; a few centimetres apart is precise enough.
       history_spacing_m_(std::max(0.02, (config.tracker.release_lag_m + 25.0) / kFrameHistory)) {}
 
-void SequenceEngine::process_frame(const FrameInput& frame,
-                                   std::span<const Observation> observations, MatchSink& sink) {
+void SequenceEngine::process_frame(const FrameInput& frame, std::span<const Observation> observations,
+                                   MatchSink& sink) {
   ++counters_.frames;
   if (counters_.frames > 1 && frame.t < last_t_) ++counters_.frames_out_of_order;
   last_t_ = frame.t;
@@ -100,9 +94,7 @@ void SequenceEngine::process_frame(const FrameInput& frame,
 }
 
 void SequenceEngine::remember_frame(const FrameInput& frame) {
-  if (history_size_ > 0 &&
-      odometer_ < history_at(history_size_ - 1).odometer + history_spacing_m_)
-    return;
+  if (history_size_ > 0 && odometer_ < history_at(history_size_ - 1).odometer + history_spacing_m_) return;
   const PassingFrame entry{frame.frame, frame.t, odometer_, frame.pose};
   if (history_size_ < kFrameHistory) {
     history_[(history_oldest_ + history_size_++) % kFrameHistory] = entry;
@@ -123,8 +115,10 @@ bool SequenceEngine::represent_by_passing_frame(Landmark& landmark) {
   std::size_t first = 0, last = history_size_;
   while (first < last) {
     const std::size_t mid = (first + last) / 2;
-    if (history_at(mid).odometer < landmark.station - kPassingWindow_m) first = mid + 1;
-    else last = mid;
+    if (history_at(mid).odometer < landmark.station - kPassingWindow_m)
+      first = mid + 1;
+    else
+      last = mid;
   }
   std::size_t best = history_size_;
   double best_sq = 0.0;
@@ -154,7 +148,9 @@ bool SequenceEngine::represent_by_passing_frame(Landmark& landmark) {
   return passed;
 }
 
-void SequenceEngine::flush(MatchSink& sink) { commit_and_release(last_t_, true, sink); }
+void SequenceEngine::flush(MatchSink& sink) {
+  commit_and_release(last_t_, true, sink);
+}
 
 void SequenceEngine::break_chains(MatchSink& sink) {
   flush(sink);
@@ -180,14 +176,12 @@ void SequenceEngine::commit_and_release(double now, bool all, MatchSink& sink) {
       }
       // Insertion sort by station: the list is short and nearly sorted.
       pending_.push_back(landmark);
-      for (std::size_t i = pending_.size() - 1;
-           i > 0 && pending_[i - 1].station > pending_[i].station; --i)
+      for (std::size_t i = pending_.size() - 1; i > 0 && pending_[i - 1].station > pending_[i].station; --i)
         std::swap(pending_[i - 1], pending_[i]);
     }
     if (done) break;
   }
-  while (!pending_.empty() &&
-         (all || pending_[0].station <= odometer_ - config_.tracker.release_lag_m)) {
+  while (!pending_.empty() && (all || pending_[0].station <= odometer_ - config_.tracker.release_lag_m)) {
     release(pending_[0], sink);
     pending_.erase_at(0);
   }
@@ -210,8 +204,7 @@ void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
 
   const ChainConfig& chain_config = config_.chain;
   if (rows_.empty() || landmark.station > rows_.back().anchor_station + chain_config.row_width_m) {
-    if (!rows_.empty() &&
-        landmark.station - rows_.back().anchor_station > chain_config.max_link_m) {
+    if (!rows_.empty() && landmark.station - rows_.back().anchor_station > chain_config.max_link_m) {
       rows_.clear();
       ++counters_.chain_breaks;
     }
@@ -306,8 +299,8 @@ void SequenceEngine::hold_for_release(const MatchEvent& held) {
   (void)confirmed_matches_.push_back(held);
 }
 
-bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from,
-                            const Eigen::Vector2d& to, double yaw, double driven) const {
+bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from, const Eigen::Vector2d& to,
+                            double yaw, double driven) const {
   const MatchConfig& mc = config_.match;
   const double c = std::cos(transform.yaw), s = std::sin(transform.yaw);
   const Eigen::Vector2d predicted(transform.x + c * from.x() - s * from.y(),
@@ -334,158 +327,159 @@ bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShap
   bool found = false;
   unsigned verified = 0;
   bool limited = false;
-  database_.for_each_match(shape, mc.max_candidates_per_query, limited,
-                           [&](std::span<const LandmarkId> candidate) {
-    ++counters_.candidates;
-    const Landmark& candidate_last = *database_.landmark(candidate[k - 1]);
-    if (candidate_last.station > query_first.station - mc.min_separation_m ||
-        candidate_last.t > query_first.t - mc.min_separation_s) {
-      ++counters_.candidates_too_recent;
-      return true;
-    }
-    std::array<Eigen::Vector2d, kMaxSequenceLength> candidate_points;
-    double normalised_error = 0.0;
-    for (unsigned i = 0; i < k; ++i) {
-      const Landmark& landmark = *database_.landmark(candidate[i]);
-      candidate_points[i] = {landmark.x, landmark.y};
-      if (i > 0) {
-        const double d = (candidate_points[i] - candidate_points[i - 1]).norm();
-        const double tolerance = database_.quantiser().tolerance(d, shape.distances[i]);
-        normalised_error += std::abs(d - shape.distances[i]) / tolerance;
-      }
-    }
-    const RigidFit fit = fit_rigid_2d({candidate_points.data(), k}, {query_points.data(), k});
-    if (fit.rms_residual > mc.max_residual_m) {
-      ++counters_.candidates_rejected_residual;
-      return true;
-    }
-    // The loop's two frames, as far apart as its relative pose says.
-    const std::optional<Pose2> relative =
-        relative_car_pose(fit.transform, best.query[k - 1], *database_.landmark(candidate[k - 1]));
-    if (mc.max_frame_distance_m > 0.0 && relative &&
-        std::hypot(relative->x, relative->y) > mc.max_frame_distance_m) {
-      ++counters_.candidates_rejected_frames_apart;
-      return true;
-    }
-    const Landmark& candidate_first = *database_.landmark(candidate[0]);
-    if (mc.confirm_loaded_places && candidate_first.station < 0.0) {
-      // Until the loaded map's alignment is known, only sequences without a
-      // gap may propose it: a skipped row is one more way for a look-alike
-      // place to fit, and a rival hypothesis holds the true one back.
-      if (over_skipped_row && !confirmed_.valid) return true;
-      // A place of a loaded map has no odometry prior: it must agree over
-      // k + 1 rows (this sequence and the one a row back, both verified)...
-      const bool continues = std::find(loaded_pairs_.begin(), loaded_pairs_.end(),
-                                       LandmarkPair{query[k - 2], candidate[k - 2]}) != loaded_pairs_.end();
-      if (loaded_pairs_.full()) loaded_pairs_.erase_at(0);
-      (void)loaded_pairs_.push_back({query[k - 1], candidate[k - 1]});
-      if (!continues) {
-        ++counters_.loaded_single_sequences;
-        return true;
-      }
-      // ...and its alignment must agree with how the two sessions' frames
-      // are known (or about to be found) to relate.
-      Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
-      for (unsigned i = 0; i < k; ++i) {
-        query_centre += query_points[i] / k;
-        candidate_centre += candidate_points[i] / k;
-      }
-      const double here = query_first.station;
-      if (confirmed_.valid) {
-        if (!agrees(confirmed_.transform, candidate_centre, query_centre, fit.transform.yaw,
-                    here - confirmed_.station)) {
-          ++counters_.loaded_rejected;
+  database_.for_each_match(
+      shape, mc.max_candidates_per_query, limited, [&](std::span<const LandmarkId> candidate) {
+        ++counters_.candidates;
+        const Landmark& candidate_last = *database_.landmark(candidate[k - 1]);
+        if (candidate_last.station > query_first.station - mc.min_separation_m ||
+            candidate_last.t > query_first.t - mc.min_separation_s) {
+          ++counters_.candidates_too_recent;
           return true;
         }
-        confirmed_ = {true, fit.transform, here};
-      } else {
-        // Confirmed by earlier hypotheses that agree and rest on other
-        // landmarks (at least a row further back along the drive), provided
-        // no rival alignment, one this match disagrees with, is as well
-        // supported: on look-alike blocks a wrong alignment can find a
-        // second match too, but not more than the true one. The matches of
-        // the agreeing hypotheses, held back so far, are sent now.
-        const auto supports = [&](const SessionAlignment& h) {
-          const double driven = here - h.station;
-          return driven >= mc.confirm_min_gap_m && driven <= mc.confirm_within_m &&
-                 agrees(h.transform, candidate_centre, query_centre, fit.transform.yaw, driven);
-        };
-        unsigned support = 0;
-        for (const SessionAlignment& h : hypotheses_) support += supports(h) ? 1 : 0;
-        unsigned rival_support = 0;
-        for (std::size_t g = 0; g < hypotheses_.size() && support > 0; ++g) {
-          const SessionAlignment& rival = hypotheses_[g];
-          if (here - rival.station > mc.confirm_within_m ||
-              agrees(fit.transform, rival.from, rival.to, rival.transform.yaw, here - rival.station))
-            continue;
-          unsigned its = 1;
-          for (std::size_t h = 0; h < hypotheses_.size(); ++h) {
-            const SessionAlignment& other = hypotheses_[h];
-            const double apart = std::abs(rival.station - other.station);
-            if (h != g && apart <= mc.confirm_within_m &&
-                agrees(rival.transform, other.from, other.to, other.transform.yaw, apart))
-              ++its;
+        std::array<Eigen::Vector2d, kMaxSequenceLength> candidate_points;
+        double normalised_error = 0.0;
+        for (unsigned i = 0; i < k; ++i) {
+          const Landmark& landmark = *database_.landmark(candidate[i]);
+          candidate_points[i] = {landmark.x, landmark.y};
+          if (i > 0) {
+            const double d = (candidate_points[i] - candidate_points[i - 1]).norm();
+            const double tolerance = database_.quantiser().tolerance(d, shape.distances[i]);
+            normalised_error += std::abs(d - shape.distances[i]) / tolerance;
           }
-          rival_support = std::max(rival_support, its);
         }
-        // This match plus the hypotheses it agrees with, against the rival.
-        const bool confirmed = support > 0 && support + 1 > rival_support;
-        if (support > 0 && !confirmed) ++counters_.loaded_rivalled;
-        if (confirmed)
-          for (std::size_t h = 0; h < hypotheses_.size(); ++h)
-            if (supports(hypotheses_[h])) hold_for_release(held_matches_[h]);
-        if (!confirmed) {
-          if (hypotheses_.full()) {
-            hypotheses_.erase_at(0);
-            held_matches_.erase_at(0);
+        const RigidFit fit = fit_rigid_2d({candidate_points.data(), k}, {query_points.data(), k});
+        if (fit.rms_residual > mc.max_residual_m) {
+          ++counters_.candidates_rejected_residual;
+          return true;
+        }
+        // The loop's two frames, as far apart as its relative pose says.
+        const std::optional<Pose2> relative =
+            relative_car_pose(fit.transform, best.query[k - 1], *database_.landmark(candidate[k - 1]));
+        if (mc.max_frame_distance_m > 0.0 && relative &&
+            std::hypot(relative->x, relative->y) > mc.max_frame_distance_m) {
+          ++counters_.candidates_rejected_frames_apart;
+          return true;
+        }
+        const Landmark& candidate_first = *database_.landmark(candidate[0]);
+        if (mc.confirm_loaded_places && candidate_first.station < 0.0) {
+          // Until the loaded map's alignment is known, only sequences without a
+          // gap may propose it: a skipped row is one more way for a look-alike
+          // place to fit, and a rival hypothesis holds the true one back.
+          if (over_skipped_row && !confirmed_.valid) return true;
+          // A place of a loaded map has no odometry prior: it must agree over
+          // k + 1 rows (this sequence and the one a row back, both verified)...
+          const bool continues =
+              std::find(loaded_pairs_.begin(), loaded_pairs_.end(),
+                        LandmarkPair{query[k - 2], candidate[k - 2]}) != loaded_pairs_.end();
+          if (loaded_pairs_.full()) loaded_pairs_.erase_at(0);
+          (void)loaded_pairs_.push_back({query[k - 1], candidate[k - 1]});
+          if (!continues) {
+            ++counters_.loaded_single_sequences;
+            return true;
           }
-          hypotheses_.push_back({true, fit.transform, here, candidate_centre, query_centre});
-          MatchEvent& held = held_matches_.push_back_slot();
-          held.k = k;
+          // ...and its alignment must agree with how the two sessions' frames
+          // are known (or about to be found) to relate.
+          Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
           for (unsigned i = 0; i < k; ++i) {
-            held.query[i] = best.query[i];
-            held.match[i] = *database_.landmark(candidate[i]);
+            query_centre += query_points[i] / k;
+            candidate_centre += candidate_points[i] / k;
           }
-          held.alignment = fit.transform;
-          held.residual_m = fit.rms_residual;
-          held.score = std::clamp(1.0 - normalised_error / (k - 1), 0.0, 1.0);
-          held.verified_candidates = 1;
-          held.aligned_pairs = k;
-          set_relative_pose(held);
-          ++counters_.loaded_hypotheses;
-          return true;
+          const double here = query_first.station;
+          if (confirmed_.valid) {
+            if (!agrees(confirmed_.transform, candidate_centre, query_centre, fit.transform.yaw,
+                        here - confirmed_.station)) {
+              ++counters_.loaded_rejected;
+              return true;
+            }
+            confirmed_ = {true, fit.transform, here};
+          } else {
+            // Confirmed by earlier hypotheses that agree and rest on other
+            // landmarks (at least a row further back along the drive), provided
+            // no rival alignment, one this match disagrees with, is as well
+            // supported: on look-alike blocks a wrong alignment can find a
+            // second match too, but not more than the true one. The matches of
+            // the agreeing hypotheses, held back so far, are sent now.
+            const auto supports = [&](const SessionAlignment& h) {
+              const double driven = here - h.station;
+              return driven >= mc.confirm_min_gap_m && driven <= mc.confirm_within_m &&
+                     agrees(h.transform, candidate_centre, query_centre, fit.transform.yaw, driven);
+            };
+            unsigned support = 0;
+            for (const SessionAlignment& h : hypotheses_) support += supports(h) ? 1 : 0;
+            unsigned rival_support = 0;
+            for (std::size_t g = 0; g < hypotheses_.size() && support > 0; ++g) {
+              const SessionAlignment& rival = hypotheses_[g];
+              if (here - rival.station > mc.confirm_within_m ||
+                  agrees(fit.transform, rival.from, rival.to, rival.transform.yaw, here - rival.station))
+                continue;
+              unsigned its = 1;
+              for (std::size_t h = 0; h < hypotheses_.size(); ++h) {
+                const SessionAlignment& other = hypotheses_[h];
+                const double apart = std::abs(rival.station - other.station);
+                if (h != g && apart <= mc.confirm_within_m &&
+                    agrees(rival.transform, other.from, other.to, other.transform.yaw, apart))
+                  ++its;
+              }
+              rival_support = std::max(rival_support, its);
+            }
+            // This match plus the hypotheses it agrees with, against the rival.
+            const bool confirmed = support > 0 && support + 1 > rival_support;
+            if (support > 0 && !confirmed) ++counters_.loaded_rivalled;
+            if (confirmed)
+              for (std::size_t h = 0; h < hypotheses_.size(); ++h)
+                if (supports(hypotheses_[h])) hold_for_release(held_matches_[h]);
+            if (!confirmed) {
+              if (hypotheses_.full()) {
+                hypotheses_.erase_at(0);
+                held_matches_.erase_at(0);
+              }
+              hypotheses_.push_back({true, fit.transform, here, candidate_centre, query_centre});
+              MatchEvent& held = held_matches_.push_back_slot();
+              held.k = k;
+              for (unsigned i = 0; i < k; ++i) {
+                held.query[i] = best.query[i];
+                held.match[i] = *database_.landmark(candidate[i]);
+              }
+              held.alignment = fit.transform;
+              held.residual_m = fit.rms_residual;
+              held.score = std::clamp(1.0 - normalised_error / (k - 1), 0.0, 1.0);
+              held.verified_candidates = 1;
+              held.aligned_pairs = k;
+              set_relative_pose(held);
+              ++counters_.loaded_hypotheses;
+              return true;
+            }
+            confirmed_ = {true, fit.transform, here};
+            hypotheses_.clear();
+            held_matches_.clear();
+          }
         }
-        confirmed_ = {true, fit.transform, here};
-        hypotheses_.clear();
-        held_matches_.clear();
-      }
-    }
-    if (mc.max_drift_rel > 0.0 && candidate_first.station >= 0.0) {
-      // Same session: the places' world positions differ by the odometry's drift only.
-      Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
-      for (unsigned i = 0; i < k; ++i) {
-        query_centre += query_points[i];
-        candidate_centre += candidate_points[i];
-      }
-      const double driven = query_first.station - candidate_last.station;
-      const double apart = (query_centre - candidate_centre).norm() / k;
-      const double turned = std::abs(fit.transform.yaw) * 180.0 / 3.14159265358979323846;
-      if (apart > mc.max_drift_abs_m + mc.max_drift_rel * driven ||
-          turned > mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven) {
-        ++counters_.candidates_rejected_drift;
+        if (mc.max_drift_rel > 0.0 && candidate_first.station >= 0.0) {
+          // Same session: the places' world positions differ by the odometry's drift only.
+          Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
+          for (unsigned i = 0; i < k; ++i) {
+            query_centre += query_points[i];
+            candidate_centre += candidate_points[i];
+          }
+          const double driven = query_first.station - candidate_last.station;
+          const double apart = (query_centre - candidate_centre).norm() / k;
+          const double turned = std::abs(fit.transform.yaw) * 180.0 / 3.14159265358979323846;
+          if (apart > mc.max_drift_abs_m + mc.max_drift_rel * driven ||
+              turned > mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven) {
+            ++counters_.candidates_rejected_drift;
+            return true;
+          }
+        }
+        ++verified;
+        if (!found || fit.rms_residual < best.residual_m) {
+          found = true;
+          for (unsigned i = 0; i < k; ++i) best.match[i] = *database_.landmark(candidate[i]);
+          best.alignment = fit.transform;
+          best.residual_m = fit.rms_residual;
+          best.score = std::clamp(1.0 - normalised_error / (k - 1), 0.0, 1.0);
+        }
         return true;
-      }
-    }
-    ++verified;
-    if (!found || fit.rms_residual < best.residual_m) {
-      found = true;
-      for (unsigned i = 0; i < k; ++i) best.match[i] = *database_.landmark(candidate[i]);
-      best.alignment = fit.transform;
-      best.residual_m = fit.rms_residual;
-      best.score = std::clamp(1.0 - normalised_error / (k - 1), 0.0, 1.0);
-    }
-    return true;
-  });
+      });
   if (limited) ++counters_.candidate_limit_hits;
   if (!found) return false;
 
@@ -505,9 +499,7 @@ void SequenceEngine::set_relative_pose(MatchEvent& event) const {
 
 void SequenceEngine::extend_closure_run(MatchEvent& event) {
   const unsigned k = event.k;
-  const auto pair_at = [&](unsigned i) {
-    return LandmarkPair{event.query[i].id, event.match[i].id};
-  };
+  const auto pair_at = [&](unsigned i) { return LandmarkPair{event.query[i].id, event.match[i].id}; };
   // The same closure goes on when this event's last-but-one landmarks are
   // the last pair of the run: the run keeps the earlier pairs too.
   const bool continues = !closure_run_.empty() && closure_run_.back().query == event.query[k - 2].id &&

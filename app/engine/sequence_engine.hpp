@@ -14,8 +14,8 @@
 #include <cstdint>
 #include <span>
 
-#include "app/engine/config.hpp"
 #include "app/common/fixed_vector.hpp"
+#include "app/engine/config.hpp"
 #include "app/engine/landmark_tracker.hpp"
 #include "app/engine/sequence_database.hpp"
 #include "app/engine/types.hpp"
@@ -40,7 +40,7 @@ struct MatchEvent {
   // Landmark pairs behind `alignment`: k, or more when this match continues
   // the previous one (the same closure, a row further on).
   unsigned aligned_pairs = 0;
-  double score = 0.0;       // 1 = distances agree exactly, 0 = at tolerance
+  double score = 0.0;  // 1 = distances agree exactly, 0 = at tolerance
   unsigned verified_candidates = 0;
 
   FrameIndex query_frame() const { return query[k - 1].last_frame; }
@@ -70,7 +70,7 @@ struct EngineCounters {
   std::uint64_t pending_overflows = 0;
   std::uint64_t chain_breaks = 0;
   std::uint64_t sequences_created = 0;
-  std::uint64_t sequences_capped = 0;  // chains beyond the per-landmark cap
+  std::uint64_t sequences_capped = 0;            // chains beyond the per-landmark cap
   std::uint64_t sequences_over_skipped_row = 0;  // of sequences_created, stepping over a row
   std::uint64_t queries = 0;
   std::uint64_t candidates = 0;  // labels and distances agree
@@ -79,11 +79,11 @@ struct EngineCounters {
   std::uint64_t candidates_rejected_drift = 0;  // beyond the odometry prior
   // The same markings, but the two frames apart (max_frame_distance_m).
   std::uint64_t candidates_rejected_frames_apart = 0;
-  std::uint64_t loaded_single_sequences = 0;    // into a loaded map, not yet over k + 1 rows
-  std::uint64_t loaded_hypotheses = 0;          // first matches into a loaded map, held back
-  std::uint64_t loaded_hypotheses_sent = 0;     // ... and sent once a later match confirmed them
-  std::uint64_t loaded_rivalled = 0;            // not confirmed: a rival alignment as well supported
-  std::uint64_t loaded_rejected = 0;            // disagreeing with the confirmed alignment
+  std::uint64_t loaded_single_sequences = 0;  // into a loaded map, not yet over k + 1 rows
+  std::uint64_t loaded_hypotheses = 0;        // first matches into a loaded map, held back
+  std::uint64_t loaded_hypotheses_sent = 0;   // ... and sent once a later match confirmed them
+  std::uint64_t loaded_rivalled = 0;          // not confirmed: a rival alignment as well supported
+  std::uint64_t loaded_rejected = 0;          // disagreeing with the confirmed alignment
   std::uint64_t candidate_limit_hits = 0;
   std::uint64_t matches = 0;
   std::uint64_t closures_extended = 0;  // alignment fitted on a run of matches
@@ -104,8 +104,7 @@ class SequenceEngine {
 
   // Feeds one frame. Observations beyond kMaxObservationsPerFrame are dropped
   // and counted by the tracker.
-  void process_frame(const FrameInput& frame, std::span<const Observation> observations,
-                     MatchSink& sink);
+  void process_frame(const FrameInput& frame, std::span<const Observation> observations, MatchSink& sink);
   // End of a drive: commits and releases everything still in flight.
   void flush(MatchSink& sink);
   // The pose is unknown for a while: landmarks in flight are released and no
@@ -208,15 +207,15 @@ class SequenceEngine {
     Eigen::Vector2d from = Eigen::Vector2d::Zero(), to = Eigen::Vector2d::Zero();
   };
   static constexpr std::size_t kMaxHypotheses = 16;
-  FixedVector<SessionAlignment, kMaxHypotheses> hypotheses_;  // newest last
-  FixedVector<MatchEvent, kMaxHypotheses> held_matches_;      // one per hypothesis
+  FixedVector<SessionAlignment, kMaxHypotheses> hypotheses_;   // newest last
+  FixedVector<MatchEvent, kMaxHypotheses> held_matches_;       // one per hypothesis
   FixedVector<MatchEvent, kMaxHypotheses> confirmed_matches_;  // to send with this landmark
   void hold_for_release(const MatchEvent& held);
   SessionAlignment confirmed_;
   // True when `transform` maps `from` (loaded) onto `to` (this session)
   // within the drift limits for `driven` metres.
-  bool agrees(const Pose2& transform, const Eigen::Vector2d& from, const Eigen::Vector2d& to,
-              double yaw, double driven) const;
+  bool agrees(const Pose2& transform, const Eigen::Vector2d& from, const Eigen::Vector2d& to, double yaw,
+              double driven) const;
 };
 
 }  // namespace markloop

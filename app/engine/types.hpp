@@ -41,8 +41,8 @@ struct Observation {
 
 struct FrameInput {
   FrameIndex frame = 0;
-  double t = 0.0;          // seconds
-  bool has_pose = false;   // the car's pose in the world frame, when known
+  double t = 0.0;         // seconds
+  bool has_pose = false;  // the car's pose in the world frame, when known
   Pose2 pose{};
 };
 
@@ -56,7 +56,7 @@ struct Landmark {
   // closest to it when the pose is known (the same spot on every visit),
   // else its last sighting.
   FrameIndex last_frame = 0;
-  float x = 0.0f;             // world position, metres
+  float x = 0.0f;  // world position, metres
   float y = 0.0f;
   float car_x = 0.0f;  // the car's pose at last_frame, when known
   float car_y = 0.0f;

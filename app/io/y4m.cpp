@@ -23,10 +23,14 @@ LineRead read_line(platform::InputStream& in, char* buf, std::size_t capacity, s
   for (;;) {
     char c = 0;
     switch (in.get(c)) {
-      case platform::InputStream::Status::kOk: break;
-      case platform::InputStream::Status::kEnd: return length == 0 ? LineRead::kEnd : LineRead::kTruncated;
-      case platform::InputStream::Status::kStopped: return LineRead::kStopped;
-      case platform::InputStream::Status::kError: return LineRead::kError;
+      case platform::InputStream::Status::kOk:
+        break;
+      case platform::InputStream::Status::kEnd:
+        return length == 0 ? LineRead::kEnd : LineRead::kTruncated;
+      case platform::InputStream::Status::kStopped:
+        return LineRead::kStopped;
+      case platform::InputStream::Status::kError:
+        return LineRead::kError;
     }
     if (c == '\n') return LineRead::kLine;
     if (length + 1 >= capacity) return LineRead::kTooLong;
@@ -44,10 +48,14 @@ bool parse_int(std::string_view text, int& out) {
 std::size_t Y4mFormat::chroma_bytes() const {
   const std::size_t w = static_cast<std::size_t>(width), h = static_cast<std::size_t>(height);
   switch (chroma) {
-    case Y4mChroma::kMono: return 0;
-    case Y4mChroma::k420: return 2 * ((w + 1) / 2) * ((h + 1) / 2);
-    case Y4mChroma::k422: return 2 * ((w + 1) / 2) * h;
-    case Y4mChroma::k444: return 2 * w * h;
+    case Y4mChroma::kMono:
+      return 0;
+    case Y4mChroma::k420:
+      return 2 * ((w + 1) / 2) * ((h + 1) / 2);
+    case Y4mChroma::k422:
+      return 2 * ((w + 1) / 2) * h;
+    case Y4mChroma::k444:
+      return 2 * w * h;
   }
   return 0;
 }
@@ -61,8 +69,8 @@ bool Y4mReader::open(const std::string& path, int width, int height) {
   if (!open(path)) return false;
   if (format_.width == width && format_.height == height) return true;
   const std::string sizes = "frames are " + std::to_string(format_.width) + "x" +
-                            std::to_string(format_.height) + ", the camera's " +
-                            std::to_string(width) + "x" + std::to_string(height);
+                            std::to_string(format_.height) + ", the camera's " + std::to_string(width) + "x" +
+                            std::to_string(height);
   close();
   return fail(sizes);
 }
@@ -74,21 +82,27 @@ bool Y4mReader::open(const std::string& path) {
   frames_read_ = 0;
   format_ = {};
   if (auto ec = stream_.open(path.c_str()))
-    return fail(ec.value() == EISDIR ? "is a directory, not a YUV4MPEG2 stream" : "cannot open: " + ec.message());
+    return fail(ec.value() == EISDIR ? "is a directory, not a YUV4MPEG2 stream"
+                                     : "cannot open: " + ec.message());
 
   char line[kMaxLine];
   std::size_t length = 0;
   switch (read_line(stream_, line, sizeof line, length)) {
-    case LineRead::kLine: break;
-    case LineRead::kEnd: return fail("empty file, not a YUV4MPEG2 stream");
-    case LineRead::kError: return fail("read error: " + stream_.error().message());
-    default: return fail("header line missing or too long");
+    case LineRead::kLine:
+      break;
+    case LineRead::kEnd:
+      return fail("empty file, not a YUV4MPEG2 stream");
+    case LineRead::kError:
+      return fail("read error: " + stream_.error().message());
+    default:
+      return fail("header line missing or too long");
   }
   return parse_header(std::string_view(line, length));
 }
 
 bool Y4mReader::parse_header(std::string_view header) {
-  if (header.substr(0, kMagic.size()) != kMagic || (header.size() > kMagic.size() && header[kMagic.size()] != ' '))
+  if (header.substr(0, kMagic.size()) != kMagic ||
+      (header.size() > kMagic.size() && header[kMagic.size()] != ' '))
     return fail("not a YUV4MPEG2 stream (header does not start with YUV4MPEG2)");
   header.remove_prefix(kMagic.size());
 
@@ -112,12 +126,16 @@ bool Y4mReader::parse_header(std::string_view header) {
     } else if (tag == 'F') {
       if (!parse_frame_rate(value)) return false;
     } else if (tag == 'C') {
-      if (value == "mono") format_.chroma = Y4mChroma::kMono;
+      if (value == "mono")
+        format_.chroma = Y4mChroma::kMono;
       else if (value == "420" || value == "420jpeg" || value == "420mpeg2" || value == "420paldv")
         format_.chroma = Y4mChroma::k420;
-      else if (value == "422") format_.chroma = Y4mChroma::k422;
-      else if (value == "444") format_.chroma = Y4mChroma::k444;
-      else return fail("unsupported colour space '" + std::string(value) + "' (8-bit mono, 420, 422, 444 only)");
+      else if (value == "422")
+        format_.chroma = Y4mChroma::k422;
+      else if (value == "444")
+        format_.chroma = Y4mChroma::k444;
+      else
+        return fail("unsupported colour space '" + std::string(value) + "' (8-bit mono, 420, 422, 444 only)");
     } else if (tag == 'I') {
       if (value != "p" && value != "?") return fail("interlaced streams are not supported");
     }
@@ -143,7 +161,9 @@ bool Y4mReader::parse_frame_rate(std::string_view value) {
   return true;
 }
 
-void Y4mReader::close() { stream_.close(); }
+void Y4mReader::close() {
+  stream_.close();
+}
 
 Y4mRead Y4mReader::read_frame(std::span<std::uint8_t> luma) {
   if (!stream_.is_open()) {
@@ -158,11 +178,16 @@ Y4mRead Y4mReader::read_frame(std::span<std::uint8_t> luma) {
   char line[kMaxLine];
   std::size_t length = 0;
   switch (read_line(stream_, line, sizeof line, length)) {
-    case LineRead::kLine: break;
-    case LineRead::kEnd: return Y4mRead::kEnd;
-    case LineRead::kStopped: return Y4mRead::kStopped;
-    case LineRead::kError: return frame_error("read error: " + stream_.error().message());
-    default: return frame_error("FRAME line missing, truncated or too long");
+    case LineRead::kLine:
+      break;
+    case LineRead::kEnd:
+      return Y4mRead::kEnd;
+    case LineRead::kStopped:
+      return Y4mRead::kStopped;
+    case LineRead::kError:
+      return frame_error("read error: " + stream_.error().message());
+    default:
+      return frame_error("FRAME line missing, truncated or too long");
   }
   const std::string_view tag(line, length);
   if (tag.substr(0, kFrameTag.size()) != kFrameTag ||
@@ -171,10 +196,14 @@ Y4mRead Y4mReader::read_frame(std::span<std::uint8_t> luma) {
   const auto read_plane = [&](std::uint8_t* data, std::size_t size, const char* truncated) {
     std::size_t got = 0;
     switch (stream_.read(data, size, got)) {
-      case platform::InputStream::Status::kOk: return Y4mRead::kFrame;
-      case platform::InputStream::Status::kEnd: return frame_error(truncated);
-      case platform::InputStream::Status::kStopped: return Y4mRead::kStopped;
-      case platform::InputStream::Status::kError: break;
+      case platform::InputStream::Status::kOk:
+        return Y4mRead::kFrame;
+      case platform::InputStream::Status::kEnd:
+        return frame_error(truncated);
+      case platform::InputStream::Status::kStopped:
+        return Y4mRead::kStopped;
+      case platform::InputStream::Status::kError:
+        break;
     }
     return frame_error("read error: " + stream_.error().message());
   };
@@ -188,13 +217,12 @@ Y4mRead Y4mReader::read_frame(std::span<std::uint8_t> luma) {
   return Y4mRead::kFrame;
 }
 
-bool Y4mWriter::open(const std::string& path, int width, int height, int fps_numerator,
-                     int fps_denominator) {
+bool Y4mWriter::open(const std::string& path, int width, int height, int fps_numerator, int fps_denominator) {
   (void)close();
   path_ = path;
   error_.clear();
-  if (width <= 0 || height <= 0 || width > kMaxDimension || height > kMaxDimension ||
-      fps_numerator <= 0 || fps_denominator <= 0) {
+  if (width <= 0 || height <= 0 || width > kMaxDimension || height > kMaxDimension || fps_numerator <= 0 ||
+      fps_denominator <= 0) {
     error_ = path + ": invalid size or frame rate";
     return false;
   }

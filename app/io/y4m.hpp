@@ -89,8 +89,7 @@ class Y4mWriter {
   Y4mWriter& operator=(const Y4mWriter&) = delete;
 
   // Creates `path` and writes the header of a mono stream.
-  bool open(const std::string& path, int width, int height, int fps_numerator,
-            int fps_denominator = 1);
+  bool open(const std::string& path, int width, int height, int fps_numerator, int fps_denominator = 1);
   bool write_frame(std::span<const std::uint8_t> luma);
   // Flushes and closes; false (with error()) if anything failed to write.
   bool close();

@@ -20,10 +20,8 @@ float ImageOutline::row_at(float col) const {
 BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& region,
                            const ImageOutline& hidden_below)
     : region_(region), source_cols_(camera.width()), source_rows_(camera.height()) {
-  rows_ = std::max(1, static_cast<int>(std::lround((region.x_far_m - region.x_near_m) /
-                                                   region.x_step_m)));
-  cols_ = std::max(1, static_cast<int>(std::lround((region.y_left_m - region.y_right_m) /
-                                                   region.y_step_m)));
+  rows_ = std::max(1, static_cast<int>(std::lround((region.x_far_m - region.x_near_m) / region.x_step_m)));
+  cols_ = std::max(1, static_cast<int>(std::lround((region.y_left_m - region.y_right_m) / region.y_step_m)));
   const std::size_t n = static_cast<std::size_t>(rows_) * static_cast<std::size_t>(cols_);
   calibrated_row_.assign(n, kNoSource);
   source_row_.assign(n, -1);
@@ -35,13 +33,12 @@ BirdsEyeView::BirdsEyeView(const CameraModel& camera, const BirdsEyeRegion& regi
   // Per image column: the first row of the bonnet under u or u + 1.
   std::vector<float> hidden_from_column(static_cast<std::size_t>(std::max(0, source_cols_ - 1)));
   for (std::size_t u = 0; u < hidden_from_column.size(); ++u)
-    hidden_from_column[u] = std::min(hidden_below.row_at(static_cast<float>(u)),
-                                     hidden_below.row_at(static_cast<float>(u + 1)));
+    hidden_from_column[u] =
+        std::min(hidden_below.row_at(static_cast<float>(u)), hidden_below.row_at(static_cast<float>(u + 1)));
   for (int r = 0; r < rows_; ++r) {
     for (int c = 0; c < cols_; ++c) {
       Eigen::Vector2d pixel;
-      if (!camera.ground_to_image({ground_x(static_cast<float>(r)), ground_y(static_cast<float>(c))},
-                                  pixel))
+      if (!camera.ground_to_image({ground_x(static_cast<float>(r)), ground_y(static_cast<float>(c))}, pixel))
         continue;
       // Bilinear reads (u, v) .. (u+1, v+1): all four must be road pixels.
       // Rows beyond the image are kept (a row shift may bring them in).

@@ -19,9 +19,9 @@
 namespace markloop::perception {
 
 struct BirdsEyeRegion {
-  float x_near_m = 3.0f;   // ahead of the vehicle reference point
+  float x_near_m = 3.0f;  // ahead of the vehicle reference point
   float x_far_m = 20.0f;
-  float y_left_m = 6.0f;   // left of the vehicle reference point
+  float y_left_m = 6.0f;  // left of the vehicle reference point
   float y_right_m = -6.0f;
   float x_step_m = 0.05f;  // metres per output row (along the road)
   float y_step_m = 0.04f;  // metres per output column (across the road)
@@ -70,8 +70,7 @@ class BirdsEyeView {
   // top): the road the car is about to drive over.
   bool unseen_below(int row, int col) const {
     const std::size_t i = static_cast<std::size_t>(row) * cols_ + col;
-    return source_row_[i] < 0 && calibrated_row_[i] != kNoSource &&
-           calibrated_row_[i] + row_shift_ >= 0;
+    return source_row_[i] < 0 && calibrated_row_[i] != kNoSource && calibrated_row_[i] + row_shift_ >= 0;
   }
 
   // Ground point (vehicle frame, metres) of an output pixel position

@@ -56,11 +56,10 @@ CameraModel CameraModel::pinhole(int width, int height, const PinholeIntrinsics&
   model.mounting_ = mounting;
   // Camera orientation in the vehicle frame: yaw about z (up), then pitch
   // about y (left; positive tips the optical axis down), then roll about x.
-  const Eigen::Matrix3d mount =
-      (Eigen::AngleAxisd(mounting.yaw_rad, Eigen::Vector3d::UnitZ()) *
-       Eigen::AngleAxisd(mounting.pitch_rad, Eigen::Vector3d::UnitY()) *
-       Eigen::AngleAxisd(mounting.roll_rad, Eigen::Vector3d::UnitX()))
-          .toRotationMatrix();
+  const Eigen::Matrix3d mount = (Eigen::AngleAxisd(mounting.yaw_rad, Eigen::Vector3d::UnitZ()) *
+                                 Eigen::AngleAxisd(mounting.pitch_rad, Eigen::Vector3d::UnitY()) *
+                                 Eigen::AngleAxisd(mounting.roll_rad, Eigen::Vector3d::UnitX()))
+                                    .toRotationMatrix();
   // Rows: the camera's x (right), y (down) and z (optical axis) expressed
   // in the vehicle frame, for a camera that looks straight ahead.
   Eigen::Matrix3d level;
@@ -101,8 +100,7 @@ bool CameraModel::image_to_ground(const Eigen::Vector2d& pixel, Eigen::Vector2d&
     const Eigen::Vector3d g = image_to_ground_ * pixel.homogeneous();
     // The homography's scale sign tells the ground half-plane in front of
     // the camera from the mirrored one behind the horizon.
-    const Eigen::Vector3d centre =
-        image_to_ground_ * Eigen::Vector3d(width_ / 2.0, height_ - 1.0, 1.0);
+    const Eigen::Vector3d centre = image_to_ground_ * Eigen::Vector3d(width_ / 2.0, height_ - 1.0, 1.0);
     if (!(g.z() * centre.z() > 0.0)) return false;
     ground = g.hnormalized();
     return true;
@@ -196,8 +194,9 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
         return fail("ground_homography is singular or not finite");
       CameraModel model = CameraModel::homography(w, h, H);
       if (!sees_road(model))
-        return fail("the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of "
-                    "its axis, falls inside the image (check ground_homography)");
+        return fail(
+            "the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of "
+            "its axis, falls inside the image (check ground_homography)");
       return model;
     }
 
@@ -210,7 +209,8 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
     k.cx = K(0, 2);
     k.cy = K(1, 2);
     if (!(k.fx > 0 && k.fy > 0) || !K.allFinite() || k.fx > kMaxFocalPixels || k.fy > kMaxFocalPixels)
-      return fail("camera_matrix needs focal lengths of 0 to " + std::to_string(int(kMaxFocalPixels)) + " pixels");
+      return fail("camera_matrix needs focal lengths of 0 to " + std::to_string(int(kMaxFocalPixels)) +
+                  " pixels");
     if (k.cx < 0 || k.cy < 0 || k.cx >= w || k.cy >= h)
       return fail("camera_matrix's principal point lies outside the image");
     if (!fs["distortion_coefficients"].empty()) {
@@ -241,8 +241,9 @@ std::optional<CameraModel> load_camera_model(const std::string& path, std::strin
     m.yaw_rad = yaw * kDegree;
     CameraModel model = CameraModel::pinhole(w, h, k, m);
     if (!sees_road(model))
-      return fail("the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of its "
-                  "axis, falls inside the image (check camera_matrix and the mount angles)");
+      return fail(
+          "the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of its "
+          "axis, falls inside the image (check camera_matrix and the mount angles)");
     return model;
   } catch (const std::exception& e) {
     error = path + ": " + e.what();
@@ -269,8 +270,8 @@ bool save_camera_model(const CameraModel& model, const std::string& path, std::s
     const auto& m = model.mounting();
     fs << "camera_matrix" << (cv::Mat_<double>(3, 3) << k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
     fs << "distortion_coefficients"
-       << (cv::Mat_<double>(1, 5) << k.distortion[0], k.distortion[1], k.distortion[2],
-           k.distortion[3], k.distortion[4]);
+       << (cv::Mat_<double>(1, 5) << k.distortion[0], k.distortion[1], k.distortion[2], k.distortion[3],
+           k.distortion[4]);
     fs << "mount_x" << m.x_m << "mount_y" << m.y_m << "mount_height" << m.height_m;
     fs << "mount_pitch_deg" << m.pitch_rad / kDegree << "mount_roll_deg" << m.roll_rad / kDegree
        << "mount_yaw_deg" << m.yaw_rad / kDegree;

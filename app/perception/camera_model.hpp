@@ -32,7 +32,7 @@ struct CameraMounting {
   double height_m = 1.5;
   double pitch_rad = 0.0;  // positive: looking down
   double roll_rad = 0.0;
-  double yaw_rad = 0.0;    // positive: looking left
+  double yaw_rad = 0.0;  // positive: looking left
 };
 
 class CameraModel {
@@ -62,7 +62,7 @@ class CameraModel {
   PinholeIntrinsics intrinsics_;
   CameraMounting mounting_;
   Eigen::Matrix3d vehicle_to_camera_ = Eigen::Matrix3d::Identity();  // rotation
-  Eigen::Vector3d camera_position_ = Eigen::Vector3d::Zero();       // in the vehicle frame
+  Eigen::Vector3d camera_position_ = Eigen::Vector3d::Zero();        // in the vehicle frame
   Eigen::Matrix3d image_to_ground_ = Eigen::Matrix3d::Identity();
   Eigen::Matrix3d ground_to_image_ = Eigen::Matrix3d::Identity();
 };

@@ -24,8 +24,7 @@ bool points_at(const ImageSegment& s, float x, float y, float max_sine) {
 
 }  // namespace
 
-std::optional<float> vanishing_row(std::span<const ImageSegment> segments,
-                                   const VanishingSearch& search) {
+std::optional<float> vanishing_row(std::span<const ImageSegment> segments, const VanishingSearch& search) {
   constexpr std::size_t kMaxPairs = kMaxHorizonSegments * (kMaxHorizonSegments - 1) / 2;
   std::array<Crossing, kMaxPairs> crossings;
   std::size_t count = 0;
@@ -46,8 +45,7 @@ std::optional<float> vanishing_row(std::span<const ImageSegment> segments,
       if (!(std::abs(cross) >= min_sine * alen * blen)) continue;
       const float t = ((b.x0 - a.x0) * bdy - (b.y0 - a.y0) * bdx) / cross;
       const float x = a.x0 + t * adx, y = a.y0 + t * ady;
-      if (y < search.min_row || y > search.max_row || x < search.min_col || x > search.max_col)
-        continue;
+      if (y < search.min_row || y > search.max_row || x < search.min_col || x > search.max_col) continue;
       crossings[count++] = {x, y, static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(j)};
     }
   }

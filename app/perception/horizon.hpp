@@ -33,7 +33,6 @@ inline constexpr std::size_t kMaxHorizonSegments = 24;
 // kMaxHorizonSegments) meet: of the crossings of pairs inside `search`, the
 // one the most segments point at; the median row of the crossings among
 // those segments. Nothing when no pair crosses inside `search`.
-std::optional<float> vanishing_row(std::span<const ImageSegment> segments,
-                                   const VanishingSearch& search);
+std::optional<float> vanishing_row(std::span<const ImageSegment> segments, const VanishingSearch& search);
 
 }  // namespace markloop::perception

@@ -21,17 +21,17 @@ inline constexpr std::array<std::string_view, 16> kMarkingClassNames = {
     "rightturn",     // right-turn arrow
     "forward&left",  // combined arrows
     "forward&right",
-    "stop",          // the painted word STOP
-    "ped",           // PED
-    "xing",          // XING
-    "bike",          // bicycle symbol
-    "rail",          // railroad crossing "RXR"
-    "25",            // speed numbers
+    "stop",  // the painted word STOP
+    "ped",   // PED
+    "xing",  // XING
+    "bike",  // bicycle symbol
+    "rail",  // railroad crossing "RXR"
+    "25",    // speed numbers
     "35",
     "40",
-    "diamond",       // HOV / reserved-lane diamond
-    "stopline",      // solid line across the lane
-    "crosswalk",     // zebra stripes across the road
+    "diamond",    // HOV / reserved-lane diamond
+    "stopline",   // solid line across the lane
+    "crosswalk",  // zebra stripes across the road
 };
 
 inline constexpr std::size_t kMarkingClassCount = kMarkingClassNames.size();

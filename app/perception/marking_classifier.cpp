@@ -47,8 +47,7 @@ void dense_softmax(const float* weights, const float* bias, const float* x, int 
 void add_probabilities(const MlpNet& m, const Features& features,
                        std::array<float, kClassifierOutputs>& sum) {
   std::array<float, kFeatureCount> x;
-  for (int i = 0; i < kFeatureCount; ++i)
-    x[i] = (features[i] - m.feature_mean[i]) * m.feature_inv_std[i];
+  for (int i = 0; i < kFeatureCount; ++i) x[i] = (features[i] - m.feature_mean[i]) * m.feature_inv_std[i];
   std::array<float, kMaxHidden> h;
   dense_relu(m.w1, m.b1, x.data(), kFeatureCount, m.hidden, h.data());
   std::array<float, kClassifierOutputs> probabilities;
@@ -61,8 +60,8 @@ void add_probabilities(const MlpNet& m, const Features& features,
 // `out_channels` planes of rows x cols. Innermost along a row: the compiler
 // vectorises it.
 template <int rows, int cols>
-void convolve(const float* in, int in_channels, const float* weights, const float* bias,
-              int out_channels, float* out) {
+void convolve(const float* in, int in_channels, const float* weights, const float* bias, int out_channels,
+              float* out) {
   constexpr int padded_cols = cols + 2, padded_plane = (rows + 2) * padded_cols;
   for (int o = 0; o < out_channels; ++o) {
     float* plane = out + o * rows * cols;
@@ -114,14 +113,15 @@ void cnn_probabilities(const CnnNet& n, const Features& features, const PatchScr
   convolve<rows, cols>(input.data(), kCnnInputChannels, n.conv1_w, n.conv1_b, kCnnChannels1,
                        scratch.conv1.data());
   pool<rows, cols>(scratch.conv1.data(), kCnnChannels1, scratch.pooled1.data());
-  convolve<rows / 2, cols / 2>(scratch.pooled1.data(), kCnnChannels1, n.conv2_w, n.conv2_b,
-                               kCnnChannels2, scratch.conv2.data());
+  convolve<rows / 2, cols / 2>(scratch.pooled1.data(), kCnnChannels1, n.conv2_w, n.conv2_b, kCnnChannels2,
+                               scratch.conv2.data());
   pool<rows / 2, cols / 2>(scratch.conv2.data(), kCnnChannels2, scratch.pooled2.data());
   auto& head = scratch.head;
-  convolve<rows / 4, cols / 4>(scratch.pooled2.data(), kCnnChannels2, n.conv3_w, n.conv3_b,
-                               kCnnChannels3, head.data());
+  convolve<rows / 4, cols / 4>(scratch.pooled2.data(), kCnnChannels2, n.conv3_w, n.conv3_b, kCnnChannels3,
+                               head.data());
   for (int i = 0; i < kShapeFeatures; ++i)
-    head[kCnnFlat + i] = (features[kFeatureCount - kShapeFeatures + i] - n.shape_mean[i]) * n.shape_inv_std[i];
+    head[kCnnFlat + i] =
+        (features[kFeatureCount - kShapeFeatures + i] - n.shape_mean[i]) * n.shape_inv_std[i];
   dense_relu(n.fc1_w, n.fc1_b, head.data(), kCnnHeadInputs, kCnnHidden, scratch.hidden.data());
   dense_softmax(n.fc2_w, n.fc2_b, scratch.hidden.data(), kCnnHidden, out);
 }
@@ -129,8 +129,8 @@ void cnn_probabilities(const CnnNet& n, const Features& features, const PatchScr
 }  // namespace
 
 bool cnn_is_usable(const CnnNet& n) {
-  for (const float* p : {n.conv1_w, n.conv1_b, n.conv2_w, n.conv2_b, n.conv3_w, n.conv3_b,
-                         n.shape_mean, n.shape_inv_std, n.fc1_w, n.fc1_b, n.fc2_w, n.fc2_b})
+  for (const float* p : {n.conv1_w, n.conv1_b, n.conv2_w, n.conv2_b, n.conv3_w, n.conv3_b, n.shape_mean,
+                         n.shape_inv_std, n.fc1_w, n.fc1_b, n.fc2_w, n.fc2_b})
     if (p == nullptr) return false;
   return true;
 }
@@ -166,11 +166,13 @@ int classify(const MlpModel& model, const CnnModel* cnn, float cnn_share, float 
   std::array<std::array<float, kClassifierOutputs>, kMaxCnnMembers> from_networks;
   for (int m = 0; m < cnn->members; ++m)
     cnn_probabilities(cnn->nets[m], features, patch, scratch, from_networks[static_cast<std::size_t>(m)]);
-  return blend_with_networks(probabilities,
-                             std::span(from_networks).first(static_cast<std::size_t>(cnn->members)), cnn_share);
+  return blend_with_networks(
+      probabilities, std::span(from_networks).first(static_cast<std::size_t>(cnn->members)), cnn_share);
 }
 
-float blend_log(float probability) { return std::log(std::max(probability, kBlendProbabilityFloor)); }
+float blend_log(float probability) {
+  return std::log(std::max(probability, kBlendProbabilityFloor));
+}
 
 int softmax_in_place(std::array<float, kClassifierOutputs>& logs) {
   int best_class = 0;

@@ -27,9 +27,9 @@ inline constexpr int kMaxMembers = 4;
 
 // One network.
 struct MlpNet {
-  int inputs = 0;   // == kFeatureCount
-  int hidden = 0;   // <= kMaxHidden
-  int outputs = 0;  // == kClassifierOutputs
+  int inputs = 0;                          // == kFeatureCount
+  int hidden = 0;                          // <= kMaxHidden
+  int outputs = 0;                         // == kClassifierOutputs
   const float* feature_mean = nullptr;     // [inputs]
   const float* feature_inv_std = nullptr;  // [inputs]
   const float* w1 = nullptr;               // [hidden][inputs]
@@ -94,11 +94,11 @@ struct CnnNet {
 // The network's layers, held by the caller (sized at init, not on the stack
 // of the real-time loop: about 44 KB).
 struct CnnScratch {
-  std::array<float, kCnnInputChannels * (kPatchRows + 2) * (kPatchCols + 2)> input{};
+  std::array<float, kCnnInputChannels*(kPatchRows + 2) * (kPatchCols + 2)> input{};
   std::array<float, kCnnChannels1 * kPatchRows * kPatchCols> conv1{};
-  std::array<float, kCnnChannels1 * (kPatchRows / 2 + 2) * (kPatchCols / 2 + 2)> pooled1{};
-  std::array<float, kCnnChannels2 * (kPatchRows / 2) * (kPatchCols / 2)> conv2{};
-  std::array<float, kCnnChannels2 * (kPatchRows / 4 + 2) * (kPatchCols / 4 + 2)> pooled2{};
+  std::array<float, kCnnChannels1*(kPatchRows / 2 + 2) * (kPatchCols / 2 + 2)> pooled1{};
+  std::array<float, kCnnChannels2*(kPatchRows / 2) * (kPatchCols / 2)> conv2{};
+  std::array<float, kCnnChannels2*(kPatchRows / 4 + 2) * (kPatchCols / 4 + 2)> pooled2{};
   std::array<float, kCnnHeadInputs> head{};
   std::array<float, kCnnHidden> hidden{};
 };

@@ -166,8 +166,7 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
   update_view_masks();
   // The road's horizon straight ahead: where a point 100 km ahead appears.
   Eigen::Vector2d far_ahead;
-  horizon_known_ = camera_.ground_to_image({1.0e5, 0.0}, far_ahead) &&
-                   std::isfinite(far_ahead.y());
+  horizon_known_ = camera_.ground_to_image({1.0e5, 0.0}, far_ahead) && std::isfinite(far_ahead.y());
   calibrated_horizon_row_ = horizon_known_ ? static_cast<float>(far_ahead.y()) : 0.0f;
   const std::size_t pixels = static_cast<std::size_t>(rows) * cols;
   pixel_labels_.assign(pixels, -1);
@@ -301,11 +300,18 @@ ViewKind MarkingDetector::kind_of(ViewSpread spread) const {
 
 ViewKind MarkingDetector::count_view() {
   switch (last_view_) {
-    case ViewKind::Flat: ++counters_.flat_frames; break;
-    case ViewKind::Noisy: ++counters_.noisy_frames; break;
-    case ViewKind::Cluttered: ++counters_.cluttered_frames; break;
+    case ViewKind::Flat:
+      ++counters_.flat_frames;
+      break;
+    case ViewKind::Noisy:
+      ++counters_.noisy_frames;
+      break;
+    case ViewKind::Cluttered:
+      ++counters_.cluttered_frames;
+      break;
     case ViewKind::Road:
-    case ViewKind::Unusable: break;
+    case ViewKind::Unusable:
+      break;
   }
   return last_view_;
 }
@@ -404,8 +410,8 @@ bool MarkingDetector::encloses_road(int label, const Part& box) {
   constexpr float kMinEnclosedM2 = 0.1f;
   const int cols = mask_.cols;
   const auto& region = config_.region;
-  const int min_enclosed = std::max(
-      1, static_cast<int>(std::lround(kMinEnclosedM2 / (region.x_step_m * region.y_step_m))));
+  const int min_enclosed =
+      std::max(1, static_cast<int>(std::lround(kMinEnclosedM2 / (region.x_step_m * region.y_step_m))));
   std::int32_t* parent = parent_.data();
   const std::int32_t* labels = pixel_labels_.data();
   const auto is_paint = [&](int index) {
@@ -463,8 +469,7 @@ void MarkingDetector::note_lane_segment(const Axis& axis) {
     const double sign = k == 0 ? -1.0 : 1.0;
     const float row = static_cast<float>(mean_row + sign * half_rows);
     const float col = static_cast<float>(mean_col + sign * half_cols);
-    if (!camera_.ground_to_image({birdseye_.ground_x(row), birdseye_.ground_y(col)}, ends[k]))
-      return;
+    if (!camera_.ground_to_image({birdseye_.ground_x(row), birdseye_.ground_y(col)}, ends[k])) return;
   }
   const float shift = static_cast<float>(birdseye_.row_shift());
   const ImageSegment segment{static_cast<float>(ends[0].x()), static_cast<float>(ends[0].y()) + shift,
@@ -491,8 +496,7 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
   if (last_view_ != ViewKind::Road) {
     // No road to look for paint on: whatever "paint" noise or a flat grey
     // showed would be no marking, and costs the most time of all frames.
-    for (int r = 0; r < mask_.rows; ++r)
-      std::fill_n(mask_.ptr<std::uint8_t>(r), mask_.cols, std::uint8_t{0});
+    for (int r = 0; r < mask_.rows; ++r) std::fill_n(mask_.ptr<std::uint8_t>(r), mask_.cols, std::uint8_t{0});
     lane_segment_count_ = 0;
     return;
   }
@@ -505,13 +509,12 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
   if (counters_.parts_dropped + counters_.candidates_dropped > dropped_before)
     last_view_ = ViewKind::Cluttered;
   for (std::size_t i = 0; i < candidate_count_; ++i) classify(candidates_[i]);
-  const std::size_t joined =
-      join_across_strokes(candidates(), {reported_by_.data(), candidate_count_}) +
-      join_split_words(candidates(), {reported_by_.data(), candidate_count_}, word_gap_cols_,
-                       word_max_cols_, config_.stroke_min_shared);
+  const std::size_t joined = join_across_strokes(candidates(), {reported_by_.data(), candidate_count_}) +
+                             join_split_words(candidates(), {reported_by_.data(), candidate_count_},
+                                              word_gap_cols_, word_max_cols_, config_.stroke_min_shared);
   counters_.joined += joined;
   for (std::size_t i = 0; i < candidate_count_; ++i) {
-    if (reported_by_[i] != static_cast<std::int32_t>(i)) {  // in a word's detection
+    if (reported_by_[i] != static_cast<std::int32_t>(i)) {                 // in a word's detection
       if (candidates_[i].predicted == kRejectClass) ++counters_.rejected;  // a broken letter
       continue;
     }
@@ -568,8 +571,7 @@ void MarkingDetector::threshold() {
   cv::integral(bev_, integral_, CV_32S);  // into the buffer sized at start-up
   const int half_r = window_rows_ / 2, half_c = window_cols_ / 2;
   // Paint: value > mean + max(contrast, ratio * mean).
-  const std::int32_t ratio_q8 =
-      static_cast<std::int32_t>(std::lround(config_.min_contrast_ratio * 256.0f));
+  const std::int32_t ratio_q8 = static_cast<std::int32_t>(std::lround(config_.min_contrast_ratio * 256.0f));
   const std::int32_t contrast_q8 = config_.min_contrast * 256;
   const cv::Mat& valid = birdseye_.valid();
   for (int r = 0; r < rows; ++r) {
@@ -647,13 +649,14 @@ void MarkingDetector::veto_one_sided_paint() {
 
 void MarkingDetector::cut_line_junctions() {
   const int rows = mask_.rows, cols = mask_.cols;
-  const int along = std::max(2, static_cast<int>(std::lround(config_.junction_along_m / config_.region.x_step_m)));
-  const int across = std::max(2, static_cast<int>(std::lround(config_.junction_across_m / config_.region.y_step_m)));
+  const int along =
+      std::max(2, static_cast<int>(std::lround(config_.junction_along_m / config_.region.x_step_m)));
+  const int across =
+      std::max(2, static_cast<int>(std::lround(config_.junction_across_m / config_.region.y_step_m)));
   // Vertical run lengths, saturating (int16): from above, then from below.
   // `previous` is the run one row back (none for the first row); written
   // without branches so that the loop vectorises.
-  const auto extend_runs = [cols](const std::uint8_t* m, const std::int16_t* previous,
-                                  std::int16_t* here) {
+  const auto extend_runs = [cols](const std::uint8_t* m, const std::int16_t* previous, std::int16_t* here) {
     if (previous == nullptr) {
       for (int c = 0; c < cols; ++c) here[c] = static_cast<std::int16_t>(m[c] != 0);
       return;
@@ -675,8 +678,8 @@ void MarkingDetector::cut_line_junctions() {
   // paint across is a long bar (a stop line, not an arrow's head), they are
   // marked -2 and the cut reaches `margin` rows further along the line: a
   // slanted or blurred edge of the bar would otherwise join them again.
-  const int long_bar = std::max(
-      across, static_cast<int>(std::lround(config_.junction_long_bar_m / config_.region.y_step_m)));
+  const int long_bar =
+      std::max(across, static_cast<int>(std::lround(config_.junction_long_bar_m / config_.region.y_step_m)));
   // A worn bar beside the run [c, end) of row `m`: the length (long_bar,
   // across or 0) of a stretch at least min_fill paint starting within
   // `bridge` of it. Asked only of runs on a line (few per row), and most
@@ -684,7 +687,8 @@ void MarkingDetector::cut_line_junctions() {
   const bool worn_bars = config_.junction_min_fill > 0.0f;
   const float min_fill = config_.junction_min_fill;
   const int bridge = static_cast<int>(std::lround(config_.junction_bridge_m / config_.region.y_step_m));
-  const int worn_along = static_cast<int>(std::lround(config_.junction_worn_along_m / config_.region.x_step_m));
+  const int worn_along =
+      static_cast<int>(std::lround(config_.junction_worn_along_m / config_.region.x_step_m));
   const auto worn_bar_beside = [&](int c, int end, const std::uint8_t* m) {
     const auto filled = [&](int from, int to) {  // [from, to) inside the row
       int paint = 0;
@@ -732,8 +736,8 @@ void MarkingDetector::cut_line_junctions() {
     }
   }
   if (!any) return;
-  const int margin = std::max(
-      1, static_cast<int>(std::lround(config_.junction_cut_margin_m / config_.region.x_step_m)));
+  const int margin =
+      std::max(1, static_cast<int>(std::lround(config_.junction_cut_margin_m / config_.region.x_step_m)));
   for (int r = 0; r < rows; ++r) {
     const std::int16_t* below = run_below_.data() + static_cast<std::size_t>(r) * cols;
     for (int c = 0; c < cols; ++c) {
@@ -834,8 +838,8 @@ std::size_t MarkingDetector::label_parts() {
                        static_cast<float>((box.row1 - box.row0 + 1) * (box.col1 - box.col0 + 1));
     // Lines at an angle to the view's columns (a bend, a road crossed
     // obliquely) are thin along their own axis, not their box's.
-    const bool oblique_line = part_axis.width_m <= config_.line_max_width_m &&
-                              part_axis.length_m >= config_.line_min_length_m;
+    const bool oblique_line =
+        part_axis.width_m <= config_.line_max_width_m && part_axis.length_m >= config_.line_min_length_m;
     // A sparse part is a line or kerb unless it is a closed outline.
     const bool sparse = width >= config_.sparse_min_size_m && length >= config_.sparse_min_size_m &&
                         fill < config_.sparse_max_fill;
@@ -843,8 +847,10 @@ std::size_t MarkingDetector::label_parts() {
     if (straight_line || oblique_line || (sparse && !encloses_road(label, box))) {
       ++counters_.lane_lines;
       if ((straight_line || oblique_line) && length <= config_.group_max_part_m) {
-        if (stroke_count_ < kMaxStrokes) strokes_[stroke_count_++] = box;
-        else ++counters_.strokes_dropped;
+        if (stroke_count_ < kMaxStrokes)
+          strokes_[stroke_count_++] = box;
+        else
+          ++counters_.strokes_dropped;
       }
       continue;
     }
@@ -913,8 +919,8 @@ void MarkingDetector::group_parts(std::size_t part_count) {
       if (part_groupable_[j] == 0) continue;
       const bool close = b.col0 <= a.col1 + gap_cols && a.col0 <= b.col1 + gap_cols &&
                          b.row0 <= a.row1 + gap_rows && a.row0 <= b.row1 + gap_rows;
-      const bool stripes = (part_groupable_[i] & part_groupable_[j] & kStripe) != 0 &&
-                           stripes_side_by_side(a, b);
+      const bool stripes =
+          (part_groupable_[i] & part_groupable_[j] & kStripe) != 0 && stripes_side_by_side(a, b);
       if (close || stripes) unite(parent, static_cast<int>(i), static_cast<int>(j));
     }
   }
@@ -1011,8 +1017,8 @@ void MarkingDetector::link_across_strokes(int gap_cols) {
       Candidate& a = candidates_[i];
       Candidate& b = candidates_[static_cast<std::size_t>(j)];
       const bool clipped = a.clipped || b.clipped;
-      const bool near_only = clipped && (!a.clipped || a.clipped_near_only) &&
-                             (!b.clipped || b.clipped_near_only);
+      const bool near_only =
+          clipped && (!a.clipped || a.clipped_near_only) && (!b.clipped || b.clipped_near_only);
       for (Candidate* c : {&a, &b}) {
         if (c->clipped == clipped && c->clipped_near_only == near_only) continue;
         c->clipped = clipped;
@@ -1038,8 +1044,7 @@ bool MarkingDetector::runs_out_of_view(const Part& stroke, int side, int gap_col
   return false;
 }
 
-std::size_t join_across_strokes(std::span<const Candidate> candidates,
-                                std::span<std::int32_t> reported_by) {
+std::size_t join_across_strokes(std::span<const Candidate> candidates, std::span<std::int32_t> reported_by) {
   const std::size_t n = std::min({candidates.size(), reported_by.size(), kMaxCandidates});
   const auto valid = [&](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
   // The next candidate of i's class across the strokes to the right of
@@ -1050,7 +1055,8 @@ std::size_t join_across_strokes(std::span<const Candidate> candidates,
   const auto next_marking = [&](std::size_t i) {
     int next = candidates[i].across_stroke;
     for (int hops = 0;
-         valid(next) && candidates[static_cast<std::size_t>(next)].predicted != candidates[i].predicted; ++hops)
+         valid(next) && candidates[static_cast<std::size_t>(next)].predicted != candidates[i].predicted;
+         ++hops)
       next = hops < kMaxBrokenLetters ? candidates[static_cast<std::size_t>(next)].across_stroke : -1;
     return valid(next) ? next : -1;
   };
@@ -1062,7 +1068,8 @@ std::size_t join_across_strokes(std::span<const Candidate> candidates,
   // A word starts where no candidate classified alike links to it.
   std::array<bool, kMaxCandidates> linked_to{};
   for (std::size_t i = 0; i < n; ++i)
-    if (const int next = next_marking(i); links_alike(i, next)) linked_to[static_cast<std::size_t>(next)] = true;
+    if (const int next = next_marking(i); links_alike(i, next))
+      linked_to[static_cast<std::size_t>(next)] = true;
   std::size_t joined = 0;
   for (std::size_t first = 0; first < n; ++first) {
     if (linked_to[first]) continue;
@@ -1089,7 +1096,8 @@ bool is_word_class(int label) {
       words[*marking_class_from_name(name)] = true;
     return words;
   }();
-  return label >= 0 && label < static_cast<int>(kMarkingClassCount) && kWords[static_cast<std::size_t>(label)];
+  return label >= 0 && label < static_cast<int>(kMarkingClassCount) &&
+         kWords[static_cast<std::size_t>(label)];
 }
 
 std::size_t join_split_words(std::span<const Candidate> candidates, std::span<std::int32_t> reported_by,
@@ -1099,7 +1107,8 @@ std::size_t join_split_words(std::span<const Candidate> candidates, std::span<st
   std::array<bool, kMaxCandidates> alone{};
   for (std::size_t i = 0; i < n; ++i) alone[i] = reported_by[i] == static_cast<std::int32_t>(i);
   for (std::size_t i = 0; i < n; ++i)
-    if (reported_by[i] != static_cast<std::int32_t>(i)) alone[static_cast<std::size_t>(reported_by[i])] = false;
+    if (reported_by[i] != static_cast<std::int32_t>(i))
+      alone[static_cast<std::size_t>(reported_by[i])] = false;
   // Letters of one word: close across, along most of the shorter one's
   // rows, and at most half as long again. (Whole ones only: a lane dash
   // coming into view beside a word is no letter of it, whatever it is
@@ -1132,7 +1141,8 @@ std::size_t join_split_words(std::span<const Candidate> candidates, std::span<st
         if (j == first || !letter_of(j, label)) continue;
         if (std::max(col1, letter.col1) - std::min(col0, letter.col0) + 1 > max_cols) continue;
         const auto next_to = [&](std::size_t member) { return beside(candidates[member], letter); };
-        if (std::none_of(word.begin(), word.begin() + static_cast<std::ptrdiff_t>(letters), next_to)) continue;
+        if (std::none_of(word.begin(), word.begin() + static_cast<std::ptrdiff_t>(letters), next_to))
+          continue;
         reported_by[j] = static_cast<std::int32_t>(first);
         alone[j] = false;
         word[letters++] = j;
@@ -1153,8 +1163,8 @@ bool reports_others(std::span<const std::int32_t> reported_by, std::size_t first
   return false;
 }
 
-Candidate joined_candidate(std::span<const Candidate> candidates,
-                           std::span<const std::int32_t> reported_by, std::size_t first) {
+Candidate joined_candidate(std::span<const Candidate> candidates, std::span<const std::int32_t> reported_by,
+                           std::size_t first) {
   Candidate c = candidates[first];
   const float metres_per_row = c.length_m / static_cast<float>(c.row1 - c.row0 + 1);
   const float metres_per_col = c.width_m / static_cast<float>(c.col1 - c.col0 + 1);
@@ -1207,13 +1217,12 @@ std::uint8_t MarkingDetector::touched_edges(const Box& c) const {
 }
 
 void MarkingDetector::classify(Candidate& candidate) {
-  const PatchBox box{candidate.col0,    candidate.row0,   candidate.col1, candidate.row1,
+  const PatchBox box{candidate.col0,     candidate.row0,    candidate.col1, candidate.row1,
                      candidate.length_m, candidate.width_m, candidate.parts};
   compute_features(bev_, mask_, box, scratch_, candidate.features);
   std::array<float, kClassifierOutputs> probabilities;
-  candidate.predicted =
-      perception::classify(*model_, cnn_, config_.cnn_share, config_.skip_networks_at,
-                           candidate.features, scratch_, cnn_scratch_, probabilities);
+  candidate.predicted = perception::classify(*model_, cnn_, config_.cnn_share, config_.skip_networks_at,
+                                             candidate.features, scratch_, cnn_scratch_, probabilities);
   candidate.score = probabilities[candidate.predicted];
 }
 
@@ -1333,8 +1342,7 @@ bool load_detector_config(const std::string& path, DetectorConfig& config, std::
     const double cells = (c.region.x_far_m - c.region.x_near_m) / c.region.x_step_m *
                          (c.region.y_left_m - c.region.y_right_m) / c.region.y_step_m;
     if (cells > 4.0e6) {
-      error = path + ": detector region has " + std::to_string(cells) +
-              " bird's-eye pixels; at most 4e6";
+      error = path + ": detector region has " + std::to_string(cells) + " bird's-eye pixels; at most 4e6";
       return false;
     }
     config = c;

@@ -224,25 +224,25 @@ enum class ViewKind : std::uint8_t {
 
 struct DetectorCounters {
   std::uint64_t frames = 0;
-  std::uint64_t bad_frames = 0;          // wrong size or type: not processed
-  std::uint64_t flat_frames = 0;         // ViewKind::Flat
-  std::uint64_t noisy_frames = 0;        // ViewKind::Noisy
-  std::uint64_t cluttered_frames = 0;    // ViewKind::Cluttered
-  std::uint64_t detections_withheld = 0; // found in cluttered frames: not reported
-  std::uint64_t parts = 0;               // connected bright regions kept
-  std::uint64_t parts_dropped = 0;       // over capacity (kMaxParts)
-  std::uint64_t lane_lines = 0;          // thin long parts set apart
-  std::uint64_t strokes_dropped = 0;     // ... short enough to be a letter, over kMaxStrokes
-  std::uint64_t joined = 0;              // candidates joined to the one across a letter stroke
-  std::uint64_t candidates = 0;          // groups classified
-  std::uint64_t candidates_dropped = 0;  // over capacity (kMaxCandidates)
-  std::uint64_t oversize = 0;            // parts or groups too large to be a marking
-  std::uint64_t clipped = 0;             // groups cut by the region's or the image's edge, left out
-  std::uint64_t partial = 0;             // ... cut by the near edge, reported by detect_still()
-  std::uint64_t rejected = 0;            // classifier said: not a marking
-  std::uint64_t low_score = 0;           // marking class below min_score
-  std::uint64_t pieces = 0;              // inside a larger marking (is_piece_of_larger)
-  std::uint64_t beyond_region = 0;       // whole, but centred in the guard band (guard_m)
+  std::uint64_t bad_frames = 0;           // wrong size or type: not processed
+  std::uint64_t flat_frames = 0;          // ViewKind::Flat
+  std::uint64_t noisy_frames = 0;         // ViewKind::Noisy
+  std::uint64_t cluttered_frames = 0;     // ViewKind::Cluttered
+  std::uint64_t detections_withheld = 0;  // found in cluttered frames: not reported
+  std::uint64_t parts = 0;                // connected bright regions kept
+  std::uint64_t parts_dropped = 0;        // over capacity (kMaxParts)
+  std::uint64_t lane_lines = 0;           // thin long parts set apart
+  std::uint64_t strokes_dropped = 0;      // ... short enough to be a letter, over kMaxStrokes
+  std::uint64_t joined = 0;               // candidates joined to the one across a letter stroke
+  std::uint64_t candidates = 0;           // groups classified
+  std::uint64_t candidates_dropped = 0;   // over capacity (kMaxCandidates)
+  std::uint64_t oversize = 0;             // parts or groups too large to be a marking
+  std::uint64_t clipped = 0;              // groups cut by the region's or the image's edge, left out
+  std::uint64_t partial = 0;              // ... cut by the near edge, reported by detect_still()
+  std::uint64_t rejected = 0;             // classifier said: not a marking
+  std::uint64_t low_score = 0;            // marking class below min_score
+  std::uint64_t pieces = 0;               // inside a larger marking (is_piece_of_larger)
+  std::uint64_t beyond_region = 0;        // whole, but centred in the guard band (guard_m)
   std::uint64_t detections = 0;
   std::uint64_t detections_dropped = 0;  // over kMaxDetections in one frame
   std::uint64_t horizon_measured = 0;    // frames whose lane lines crossed near the horizon
@@ -284,8 +284,7 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
 // other classes between them, rejected or not: a letter broken by a
 // shadow, which join the word too), or i itself. Returns how many
 // candidates of the word's class joined another's detection.
-std::size_t join_across_strokes(std::span<const Candidate> candidates,
-                                std::span<std::int32_t> reported_by);
+std::size_t join_across_strokes(std::span<const Candidate> candidates, std::span<std::int32_t> reported_by);
 // True for the classes painted as words or numbers (stop, ped, xing, the
 // word BIKE or the bicycle, 25, 35, 40).
 bool is_word_class(int label);
@@ -302,8 +301,8 @@ std::size_t join_split_words(std::span<const Candidate> candidates, std::span<st
 bool reports_others(std::span<const std::int32_t> reported_by, std::size_t first);
 // Candidate `first` grown by those reported by it: their boxes joined, the
 // highest score of its class, cut by the view's edge where any of them is.
-Candidate joined_candidate(std::span<const Candidate> candidates,
-                           std::span<const std::int32_t> reported_by, std::size_t first);
+Candidate joined_candidate(std::span<const Candidate> candidates, std::span<const std::int32_t> reported_by,
+                           std::size_t first);
 
 class MarkingDetector {
  public:
@@ -413,29 +412,29 @@ class MarkingDetector {
   int word_gap_cols_ = 0, word_max_cols_ = 0;  // word_join_gap_m, word_max_width_m
   int min_part_area_px_ = 1;
 
-  cv::Mat bev_;       // CV_8UC1 bird's-eye image
-  cv::Mat mask_;      // CV_8UC1 paint mask
+  cv::Mat bev_;             // CV_8UC1 bird's-eye image
+  cv::Mat mask_;            // CV_8UC1 paint mask
   cv::Mat integral_;        // CV_32SC1 (rows+1) x (cols+1): bird's-eye sums
   cv::Mat valid_integral_;  // CV_32SC1: counts of valid pixels (for the view's row shift)
   // CV_8UC2 {value, 1}: the road's pixels (valid, not painted by the
   // window test), 0 elsewhere; CV_32SC2: their integral, interleaved so that
   // a quadrant's sum and count share cache lines.
   cv::Mat road_pixels_, road_integral_;
-  cv::Mat at_edge_;         // CV_8UC1: kNearEdge / kOtherEdge where a pixel borders what is not seen
+  cv::Mat at_edge_;  // CV_8UC1: kNearEdge / kOtherEdge where a pixel borders what is not seen
   // For update_view_masks(): one row's kind of unseen per pixel (kNearEdge:
   // below, kOtherEdge: elsewhere, 0: seen), and per pixel (CV_8UC1) those of
   // it and its left and right neighbours ORed.
   std::vector<std::uint8_t> unseen_kind_row_;
   cv::Mat unseen_kind_across_;
-  std::vector<std::int16_t> run_above_;     // paint run length down to each pixel
-  std::vector<std::int16_t> run_below_;     // ... and from it downwards
-  std::vector<std::int32_t> pixel_labels_;  // provisional label per pixel, -1 none
-  std::vector<std::int32_t> parent_;        // union-find over provisional labels
-  std::vector<Part> label_box_;             // box and area per provisional label
-  std::vector<Moments> label_moments_;      // pixel sums per provisional label
-  std::vector<std::uint8_t> fill_reached_;  // encloses_road(): pixels reached from the box's border
-  std::vector<std::int32_t> fill_queue_;    // ... and those still to visit
-  std::vector<Part> parts_;                 // kMaxParts
+  std::vector<std::int16_t> run_above_;      // paint run length down to each pixel
+  std::vector<std::int16_t> run_below_;      // ... and from it downwards
+  std::vector<std::int32_t> pixel_labels_;   // provisional label per pixel, -1 none
+  std::vector<std::int32_t> parent_;         // union-find over provisional labels
+  std::vector<Part> label_box_;              // box and area per provisional label
+  std::vector<Moments> label_moments_;       // pixel sums per provisional label
+  std::vector<std::uint8_t> fill_reached_;   // encloses_road(): pixels reached from the box's border
+  std::vector<std::int32_t> fill_queue_;     // ... and those still to visit
+  std::vector<Part> parts_;                  // kMaxParts
   std::array<Part, kMaxStrokes> strokes_{};  // line parts short enough to be a letter
   std::size_t stroke_count_ = 0;
   std::vector<std::int32_t> group_parent_;     // union-find over parts

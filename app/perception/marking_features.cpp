@@ -13,8 +13,8 @@ constexpr float kMargin = 0.08f;
 constexpr float kHogClip = 0.2f;
 constexpr int kHogBlockCells = 2;  // HOG normalised per block of 2 x 2 cells
 constexpr float kHogBlockFloor = 0.1f;
-static_assert((kPatchCols / kHogCell) % kHogBlockCells == 0 &&
-              (kPatchRows / kHogCell) % kHogBlockCells == 0, "whole blocks of cells");
+static_assert((kPatchCols / kHogCell) % kHogBlockCells == 0 && (kPatchRows / kHogCell) % kHogBlockCells == 0,
+              "whole blocks of cells");
 
 float sample(const cv::Mat& image, float x, float y) {
   const int x0 = std::clamp(static_cast<int>(std::floor(x)), 0, image.cols - 1);
@@ -48,8 +48,8 @@ void normalise(float* v, int n, float energy_floor) {
 
 }  // namespace
 
-void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& box,
-                      PatchScratch& scratch, Features& out) {
+void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& box, PatchScratch& scratch,
+                      Features& out) {
   const float width = static_cast<float>(box.col1 - box.col0 + 1);
   const float height = static_cast<float>(box.row1 - box.row0 + 1);
   const float left = static_cast<float>(box.col0) - kMargin * width;
@@ -84,8 +84,8 @@ void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& b
   for (int r = 0; r < kPatchRows; ++r) {
     for (int c = 0; c < kPatchCols; ++c) {
       const auto at = [&](int rr, int cc) {
-        return scratch.grey[std::clamp(rr, 0, kPatchRows - 1) * kPatchCols +
-                            std::clamp(cc, 0, kPatchCols - 1)];
+        return scratch
+            .grey[std::clamp(rr, 0, kPatchRows - 1) * kPatchCols + std::clamp(cc, 0, kPatchCols - 1)];
       };
       const float gx = at(r, c + 1) - at(r, c - 1);
       const float gy = at(r + 1, c) - at(r - 1, c);

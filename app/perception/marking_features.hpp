@@ -17,8 +17,7 @@ inline constexpr int kHogCell = 4;
 inline constexpr int kHogBins = 8;  // signed orientation: paint edges have a polarity
 inline constexpr int kHogFeatures = (kPatchCols / kHogCell) * (kPatchRows / kHogCell) * kHogBins;
 inline constexpr int kOccupancyCell = 2;
-inline constexpr int kOccupancyFeatures =
-    (kPatchCols / kOccupancyCell) * (kPatchRows / kOccupancyCell);
+inline constexpr int kOccupancyFeatures = (kPatchCols / kOccupancyCell) * (kPatchRows / kOccupancyCell);
 inline constexpr int kShapeFeatures = 6;
 inline constexpr int kFeatureCount = kHogFeatures + kOccupancyFeatures + kShapeFeatures;
 
@@ -36,7 +35,7 @@ struct PatchBox {
 };
 
 // `bev`, `mask`: CV_8UC1 of the same size; the box must lie inside them.
-void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& box,
-                      PatchScratch& scratch, Features& out);
+void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& box, PatchScratch& scratch,
+                      Features& out);
 
 }  // namespace markloop::perception

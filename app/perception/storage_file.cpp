@@ -62,22 +62,36 @@ std::size_t first_line_too_deep(std::string_view text) {
       continue;
     }
     if (quote != 0) {
-      if (c == '\\' && quote == '"') ++i;
-      else if (c == quote) quote = 0;
+      if (c == '\\' && quote == '"')
+        ++i;
+      else if (c == quote)
+        quote = 0;
       continue;
     }
     switch (c) {
-      case '"': case '\'': quote = c; break;
-      case '[': case '{': ++brackets; break;
-      case ']': case '}': --brackets; break;
+      case '"':
+      case '\'':
+        quote = c;
+        break;
+      case '[':
+      case '{':
+        ++brackets;
+        break;
+      case ']':
+      case '}':
+        --brackets;
+        break;
       case '<':
-        if (next == '/') --elements;
-        else if (next != '?' && next != '!') ++elements;
+        if (next == '/')
+          --elements;
+        else if (next != '?' && next != '!')
+          ++elements;
         break;
       case '/':
         if (next == '>') --elements;
         break;
-      default: break;
+      default:
+        break;
     }
     if (brackets > kMaxStorageNesting || elements > kMaxStorageNesting) return line;
   }

@@ -14,24 +14,21 @@ struct CanFrame {
   static constexpr std::uint32_t kMaxExtendedId = 0x1FFFFFFF;
   static constexpr std::uint8_t kMaxDlc = 8;
 
-  std::uint32_t id = 0;       // 11-bit (standard) or 29-bit (extended), no flags
+  std::uint32_t id = 0;  // 11-bit (standard) or 29-bit (extended), no flags
   bool extended = false;
-  std::uint8_t dlc = 0;       // payload length 0..8
+  std::uint8_t dlc = 0;  // payload length 0..8
   std::array<std::uint8_t, 8> data{};
   std::int64_t timestamp_ns = 0;  // CLOCK_REALTIME; 0 = not known
 
   std::span<const std::uint8_t> payload() const { return {data.data(), dlc <= kMaxDlc ? dlc : kMaxDlc}; }
   // Id fits its format and dlc <= 8.
-  bool valid() const {
-    return dlc <= kMaxDlc && id <= (extended ? kMaxExtendedId : kMaxStandardId);
-  }
+  bool valid() const { return dlc <= kMaxDlc && id <= (extended ? kMaxExtendedId : kMaxStandardId); }
 };
 
 // Same id, format, length and payload bytes (timestamps and bytes past dlc
 // are ignored).
 inline bool same_content(const CanFrame& a, const CanFrame& b) {
-  if (a.id != b.id || a.extended != b.extended || a.dlc != b.dlc || a.dlc > CanFrame::kMaxDlc)
-    return false;
+  if (a.id != b.id || a.extended != b.extended || a.dlc != b.dlc || a.dlc > CanFrame::kMaxDlc) return false;
   for (std::uint8_t i = 0; i < a.dlc; ++i)
     if (a.data[i] != b.data[i]) return false;
   return true;

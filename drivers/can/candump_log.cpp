@@ -19,8 +19,8 @@ constexpr char kHex[] = "0123456789ABCDEF";
 bool valid_interface(std::string_view name) {
   if (name.empty() || name.size() > kCandumpMaxInterface) return false;
   for (char c : name) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-                    c == '_' || c == '-' || c == '.' || c == '@';
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+                    c == '-' || c == '.' || c == '@';
     if (!ok) return false;
   }
   return true;
@@ -57,15 +57,14 @@ std::size_t format_candump_line(const CanFrame& frame, std::string_view interfac
     data[2 * i + 1] = kHex[frame.data[i] & 0xF];
   }
   data[2 * frame.dlc] = '\0';
-  const int n = std::snprintf(out, capacity, "(%010lld.%06lld) %.*s %s#%s\n",
-                              static_cast<long long>(sec), static_cast<long long>(usec),
-                              static_cast<int>(interface.size()), interface.data(), id, data);
+  const int n = std::snprintf(out, capacity, "(%010lld.%06lld) %.*s %s#%s\n", static_cast<long long>(sec),
+                              static_cast<long long>(usec), static_cast<int>(interface.size()),
+                              interface.data(), id, data);
   if (n <= 0 || static_cast<std::size_t>(n) >= capacity) return 0;
   return static_cast<std::size_t>(n);
 }
 
-bool parse_candump_line(std::string_view line, CandumpRecord& out,
-                        CandumpLineError& error) noexcept {
+bool parse_candump_line(std::string_view line, CandumpRecord& out, CandumpLineError& error) noexcept {
   std::size_t pos = 0;
   auto fail = [&](std::size_t at, const char* what) {
     error.column = at + 1;
@@ -97,8 +96,7 @@ bool parse_candump_line(std::string_view line, CandumpRecord& out,
       return fail(pos, "timestamp needs exactly 6 digits of microseconds");
     usec = usec * 10 + (line[pos] - '0');
   }
-  if (pos >= line.size() || line[pos] != ')')
-    return fail(pos, "expected ')' after 6 digits of microseconds");
+  if (pos >= line.size() || line[pos] != ')') return fail(pos, "expected ')' after 6 digits of microseconds");
   ++pos;
   if (pos >= line.size() || line[pos] != ' ') return fail(pos, "expected one space after ')'");
   ++pos;
@@ -166,8 +164,7 @@ bool parse_candump_line(std::string_view line, CandumpRecord& out,
 
 // ---------------------------------------------------------------- writer
 
-std::error_code CandumpLogWriter::open(const char* path, std::string_view interface,
-                                       bool append) noexcept {
+std::error_code CandumpLogWriter::open(const char* path, std::string_view interface, bool append) noexcept {
   (void)close();
   if (path == nullptr || !valid_interface(interface))
     return std::make_error_code(std::errc::invalid_argument);
@@ -234,7 +231,9 @@ std::error_code CandumpLogReader::open(const std::string& path) noexcept {
   return {};
 }
 
-void CandumpLogReader::close() noexcept { stream_.close(); }
+void CandumpLogReader::close() noexcept {
+  stream_.close();
+}
 
 CandumpLogReader::Status CandumpLogReader::next(CandumpRecord& out) {
   if (failed_) return Status::Error;
@@ -267,8 +266,8 @@ CandumpLogReader::Status CandumpLogReader::next(CandumpRecord& out) {
     return Status::Frame;
   }
   failed_ = true;
-  error_ = path_ + ":" + std::to_string(line_) + ":" + std::to_string(err.column) + ": " +
-           err.what + " in '" + line_text_ + "'";
+  error_ = path_ + ":" + std::to_string(line_) + ":" + std::to_string(err.column) + ": " + err.what +
+           " in '" + line_text_ + "'";
   return Status::Error;
 }
 

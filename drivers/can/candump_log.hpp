@@ -34,7 +34,7 @@ std::size_t format_candump_line(const CanFrame& frame, std::string_view interfac
 
 struct CandumpRecord {
   CanFrame frame;
-  std::array<char, kCandumpMaxInterface + 1> interface{};  // NUL-terminated
+  std::array<char, kCandumpMaxInterface + 1> interface {};  // NUL-terminated
   std::string_view interface_name() const { return {interface.data()}; }
 };
 
@@ -46,8 +46,7 @@ struct CandumpLineError {
 
 // Parses one line (without its newline). Returns true and fills `out`, or
 // false and fills `error`.
-bool parse_candump_line(std::string_view line, CandumpRecord& out,
-                        CandumpLineError& error) noexcept;
+bool parse_candump_line(std::string_view line, CandumpRecord& out, CandumpLineError& error) noexcept;
 
 // A sink writing candump log lines to a file. The output is buffered in a
 // fixed buffer and written by flush(), when the buffer is full, and by

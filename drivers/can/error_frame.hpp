@@ -9,7 +9,7 @@
 namespace markloop::can {
 
 struct ErrorFrameInfo {
-  bool valid = false;  // CAN_ERR_FLAG set and len == CAN_ERR_DLC
+  bool valid = false;         // CAN_ERR_FLAG set and len == CAN_ERR_DLC
   std::uint32_t classes = 0;  // the CAN_ERR_* class bits of can_id
 
   bool tx_timeout = false;

@@ -38,17 +38,20 @@ union RxBuffer {
 };
 static_assert(sizeof(RxBuffer) == CANFD_MTU);
 
-constexpr std::size_t kControlBytes =
-    CMSG_SPACE(sizeof(struct timespec)) + CMSG_SPACE(sizeof(std::uint32_t));
+constexpr std::size_t kControlBytes = CMSG_SPACE(sizeof(struct timespec)) + CMSG_SPACE(sizeof(std::uint32_t));
 
 }  // namespace
 
 const char* to_string(SocketCan::State state) noexcept {
   switch (state) {
-    case SocketCan::State::Closed: return "Closed";
-    case SocketCan::State::Open: return "Open";
-    case SocketCan::State::BusOff: return "BusOff";
-    case SocketCan::State::Recovering: return "Recovering";
+    case SocketCan::State::Closed:
+      return "Closed";
+    case SocketCan::State::Open:
+      return "Open";
+    case SocketCan::State::BusOff:
+      return "BusOff";
+    case SocketCan::State::Recovering:
+      return "Recovering";
   }
   return "?";
 }
@@ -109,14 +112,13 @@ std::error_code SocketCan::open_socket() noexcept {
                                          static_cast<unsigned>(filter_count_ * sizeof(can_filter))))
     return ec;
   const can_err_mask_t err_mask = options_.error_frames ? CAN_ERR_MASK : 0U;
-  if (auto ec = platform::sys_setsockopt(sock.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask,
-                                         sizeof(err_mask)))
+  if (auto ec =
+          platform::sys_setsockopt(sock.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof(err_mask)))
     return ec;
   const int one = 1;
   if (auto ec = platform::sys_setsockopt(sock.get(), SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof(one)))
     return ec;
-  if (auto ec = platform::sys_setsockopt(sock.get(), SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof(one)))
-    return ec;
+  if (auto ec = platform::sys_setsockopt(sock.get(), SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof(one))) return ec;
   if (options_.receive_buffer_bytes > 0) {
     const int bytes = options_.receive_buffer_bytes;
     if (auto ec = platform::sys_setsockopt(sock.get(), SOL_SOCKET, SO_RCVBUF, &bytes, sizeof(bytes)))
@@ -133,8 +135,7 @@ std::error_code SocketCan::open_socket() noexcept {
   struct ifreq flags {};
   std::memcpy(flags.ifr_name, ifname_.data(), ifname_len_);
   if (auto ec = platform::sys_ioctl(sock.get(), SIOCGIFFLAGS, &flags)) return ec;
-  if ((flags.ifr_flags & IFF_UP) == 0 || (flags.ifr_flags & IFF_RUNNING) == 0)
-    return make_error(ENETDOWN);
+  if ((flags.ifr_flags & IFF_UP) == 0 || (flags.ifr_flags & IFF_RUNNING) == 0) return make_error(ENETDOWN);
 
   fd_ = std::move(sock);
   last_ovfl_ = 0;
@@ -146,8 +147,7 @@ std::error_code SocketCan::interface_running() noexcept {
   struct ifreq flags {};
   std::memcpy(flags.ifr_name, ifname_.data(), ifname_len_);
   if (auto ec = platform::sys_ioctl(fd_.get(), SIOCGIFFLAGS, &flags)) return ec;
-  if ((flags.ifr_flags & IFF_UP) == 0 || (flags.ifr_flags & IFF_RUNNING) == 0)
-    return make_error(ENETDOWN);
+  if ((flags.ifr_flags & IFF_UP) == 0 || (flags.ifr_flags & IFF_RUNNING) == 0) return make_error(ENETDOWN);
   return {};
 }
 
@@ -214,10 +214,14 @@ std::chrono::milliseconds SocketCan::recovery_wait() const noexcept {
 
 std::error_code SocketCan::state_error() const noexcept {
   switch (state_) {
-    case State::Open: return {};
-    case State::Closed: return std::make_error_code(std::errc::not_connected);
-    case State::BusOff: return std::make_error_code(std::errc::network_unreachable);
-    case State::Recovering: return std::make_error_code(std::errc::network_down);
+    case State::Open:
+      return {};
+    case State::Closed:
+      return std::make_error_code(std::errc::not_connected);
+    case State::BusOff:
+      return std::make_error_code(std::errc::network_unreachable);
+    case State::Recovering:
+      return std::make_error_code(std::errc::network_down);
   }
   return std::make_error_code(std::errc::not_connected);
 }

@@ -48,7 +48,7 @@ struct ErrorClassCounters {
   std::uint64_t bus_off = 0;
   std::uint64_t bus_error = 0;
   std::uint64_t restarted = 0;
-  std::uint64_t rx_overflow = 0;   // controller RX buffer overflow
+  std::uint64_t rx_overflow = 0;  // controller RX buffer overflow
   std::uint64_t tx_overflow = 0;
   std::uint64_t error_warning = 0;
   std::uint64_t error_passive = 0;
@@ -65,25 +65,25 @@ struct SocketCanCounters {
   std::uint64_t rx_no_timestamp = 0;  // no SCM_TIMESTAMPNS: host clock used
   std::uint64_t rx_ctrunc = 0;        // control data truncated (MSG_CTRUNC)
   // Transmit path.
-  std::uint64_t tx_frames = 0;        // frames the kernel accepted
-  std::uint64_t tx_errors = 0;        // write failures other than below
-  std::uint64_t tx_short_writes = 0;  // write count != sizeof(struct can_frame)
-  std::uint64_t tx_enobufs = 0;       // kernel/device queue full
-  std::uint64_t tx_eagain = 0;        // socket send buffer full
-  std::uint64_t tx_queue_drops = 0;   // oldest frames dropped from the app ring
-  std::uint64_t tx_rejected = 0;      // send() while not Open, or invalid frame
+  std::uint64_t tx_frames = 0;            // frames the kernel accepted
+  std::uint64_t tx_errors = 0;            // write failures other than below
+  std::uint64_t tx_short_writes = 0;      // write count != sizeof(struct can_frame)
+  std::uint64_t tx_enobufs = 0;           // kernel/device queue full
+  std::uint64_t tx_eagain = 0;            // socket send buffer full
+  std::uint64_t tx_queue_drops = 0;       // oldest frames dropped from the app ring
+  std::uint64_t tx_rejected = 0;          // send() while not Open, or invalid frame
   std::uint64_t tx_flushed_on_reset = 0;  // queued frames dropped when recovery began
-  std::uint64_t tx_stalls = 0;        // nothing sent for Options::tx_stall_timeout
+  std::uint64_t tx_stalls = 0;            // nothing sent for Options::tx_stall_timeout
   // Error frames and state.
-  std::uint64_t error_frames = 0;     // error frames read
-  std::uint64_t error_frames_bad = 0; // malformed error frames
+  std::uint64_t error_frames = 0;      // error frames read
+  std::uint64_t error_frames_bad = 0;  // malformed error frames
   ErrorClassCounters error_classes{};
-  std::uint64_t bus_off = 0;          // entries into BusOff
-  std::uint64_t interface_down = 0;   // interface went down or vanished
-  std::uint64_t resets = 0;           // entries into Recovering for other reasons
+  std::uint64_t bus_off = 0;         // entries into BusOff
+  std::uint64_t interface_down = 0;  // interface went down or vanished
+  std::uint64_t resets = 0;          // entries into Recovering for other reasons
   std::uint64_t recovery_attempts = 0;
   std::uint64_t recovery_failures = 0;
-  std::uint64_t restarts = 0;         // returns to Open after BusOff/Recovering
+  std::uint64_t restarts = 0;  // returns to Open after BusOff/Recovering
 };
 
 class SocketCan final : public CanFrameSink {
@@ -172,7 +172,7 @@ class SocketCan final : public CanFrameSink {
  private:
   using Clock = std::chrono::steady_clock;
 
-  std::error_code open_socket() noexcept;   // (re)creates fd_ from the stored config
+  std::error_code open_socket() noexcept;        // (re)creates fd_ from the stored config
   std::error_code interface_running() noexcept;  // {} when IFF_UP and IFF_RUNNING
   void enter_recovering(bool interface_down) noexcept;
   void enter_open_after_recovery() noexcept;

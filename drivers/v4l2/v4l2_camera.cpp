@@ -51,25 +51,28 @@ int ms_until(V4l2Camera::Clock::time_point t, V4l2Camera::Clock::time_point now)
 
 const char* to_string(V4l2Camera::State state) noexcept {
   switch (state) {
-    case V4l2Camera::State::Closed: return "Closed";
-    case V4l2Camera::State::Opened: return "Opened";
-    case V4l2Camera::State::Streaming: return "Streaming";
-    case V4l2Camera::State::Stalled: return "Stalled";
-    case V4l2Camera::State::Recovering: return "Recovering";
+    case V4l2Camera::State::Closed:
+      return "Closed";
+    case V4l2Camera::State::Opened:
+      return "Opened";
+    case V4l2Camera::State::Streaming:
+      return "Streaming";
+    case V4l2Camera::State::Stalled:
+      return "Stalled";
+    case V4l2Camera::State::Recovering:
+      return "Recovering";
   }
   return "?";
 }
 
 std::error_code V4l2Camera::validate(const CameraConfig& c) noexcept {
   const bool ok = !c.device.empty() && c.device.size() < kMaxPath &&
-                  c.device.find('\0') == std::string_view::npos && c.input >= -1 &&
-                  c.width > 0 && c.width <= kMaxDimension && c.height > 0 &&
-                  c.height <= kMaxDimension &&
+                  c.device.find('\0') == std::string_view::npos && c.input >= -1 && c.width > 0 &&
+                  c.width <= kMaxDimension && c.height > 0 && c.height <= kMaxDimension &&
                   (c.format != PixelFormat::Yuyv || c.width % 2 == 0) && c.fps <= kMaxFps &&
                   c.buffer_count >= 1 && c.buffer_count <= V4l2Device::kMaxBuffers &&
-                  c.frame_timeout.count() > 0 && c.stall_restart.count() >= 0 &&
-                  c.backoff_min.count() > 0 && c.backoff_max >= c.backoff_min &&
-                  c.max_consecutive_errors >= 1;
+                  c.frame_timeout.count() > 0 && c.stall_restart.count() >= 0 && c.backoff_min.count() > 0 &&
+                  c.backoff_max >= c.backoff_min && c.max_consecutive_errors >= 1;
   return ok ? std::error_code{} : std::make_error_code(std::errc::invalid_argument);
 }
 
@@ -94,8 +97,7 @@ std::error_code V4l2Camera::start(const CameraConfig& config) noexcept {
 }
 
 std::error_code V4l2Camera::start() noexcept {
-  if (state_ == State::Streaming || state_ == State::Stalled || state_ == State::Recovering)
-    return {};
+  if (state_ == State::Streaming || state_ == State::Stalled || state_ == State::Recovering) return {};
   if (state_ != State::Opened) return V4l2Error::NotStreaming;
   if (auto ec = start_stream()) {
     last_error_ = ec;
@@ -219,8 +221,7 @@ bool V4l2Camera::handle_buffer(const v4l2_buffer& buf, FrameView& out) noexcept 
   out.sequence = buf.sequence;
   out.timestamp_ns = static_cast<std::int64_t>(buf.timestamp.tv_sec) * 1'000'000'000 +
                      static_cast<std::int64_t>(buf.timestamp.tv_usec) * 1'000;
-  out.timestamp_monotonic =
-      (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+  out.timestamp_monotonic = (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
   out.index = index;
   out.generation = generation_;
   held_[index] = true;

@@ -59,8 +59,8 @@ struct CameraConfig {
   std::uint32_t width = 640;
   std::uint32_t height = 480;
   PixelFormat format = PixelFormat::Grey;
-  std::uint32_t fps = 0;            // 0 keeps the driver's rate
-  std::uint32_t buffer_count = 4;   // exactly this many, or open() fails
+  std::uint32_t fps = 0;                          // 0 keeps the driver's rate
+  std::uint32_t buffer_count = 4;                 // exactly this many, or open() fails
   std::chrono::milliseconds frame_timeout{500};   // no frame this long: Stalled
   std::chrono::milliseconds stall_restart{2000};  // Stalled this long: Recovering (0: never)
   std::chrono::milliseconds backoff_min{20};
@@ -77,28 +77,28 @@ struct FrameView {
   std::uint32_t height = 0;
   std::uint32_t stride = 0;
   PixelFormat format = PixelFormat::Grey;
-  std::uint32_t sequence = 0;         // driver's frame number
-  std::int64_t timestamp_ns = 0;      // driver's timestamp
-  bool timestamp_monotonic = false;   // V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC
-  std::uint32_t index = 0;            // buffer index (for release)
-  std::uint32_t generation = 0;       // stream generation (for release)
+  std::uint32_t sequence = 0;        // driver's frame number
+  std::int64_t timestamp_ns = 0;     // driver's timestamp
+  bool timestamp_monotonic = false;  // V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC
+  std::uint32_t index = 0;           // buffer index (for release)
+  std::uint32_t generation = 0;      // stream generation (for release)
 };
 
 struct CameraCounters {
-  std::uint64_t frames = 0;            // frames handed out
-  std::uint64_t dropped = 0;           // gaps in the driver's sequence numbers
-  std::uint64_t sequence_restarts = 0; // sequence went backwards (not a restart of ours)
-  std::uint64_t buffer_errors = 0;     // V4L2_BUF_FLAG_ERROR buffers (requeued)
-  std::uint64_t bad_buffers = 0;       // bad index or bytesused (requeued)
-  std::uint64_t timeouts = 0;          // wait_frame() calls that timed out
-  std::uint64_t stalls = 0;            // Streaming -> Stalled
-  std::uint64_t io_errors = 0;         // ioctl/poll failures while streaming
-  std::uint64_t device_lost = 0;       // ENODEV/ENXIO/POLLHUP: device gone
+  std::uint64_t frames = 0;             // frames handed out
+  std::uint64_t dropped = 0;            // gaps in the driver's sequence numbers
+  std::uint64_t sequence_restarts = 0;  // sequence went backwards (not a restart of ours)
+  std::uint64_t buffer_errors = 0;      // V4L2_BUF_FLAG_ERROR buffers (requeued)
+  std::uint64_t bad_buffers = 0;        // bad index or bytesused (requeued)
+  std::uint64_t timeouts = 0;           // wait_frame() calls that timed out
+  std::uint64_t stalls = 0;             // Streaming -> Stalled
+  std::uint64_t io_errors = 0;          // ioctl/poll failures while streaming
+  std::uint64_t device_lost = 0;        // ENODEV/ENXIO/POLLHUP: device gone
   std::uint64_t recoveries_started = 0;
   std::uint64_t reopen_attempts = 0;
   std::uint64_t reopen_failures = 0;
   std::uint64_t reopen_successes = 0;
-  std::int64_t last_recovery_ns = 0;   // Recovering -> Streaming, last time
+  std::int64_t last_recovery_ns = 0;  // Recovering -> Streaming, last time
   std::int64_t max_recovery_ns = 0;
 };
 
@@ -153,8 +153,8 @@ class V4l2Camera {
   static std::error_code validate(const CameraConfig& config) noexcept;
 
  private:
-  std::error_code open_stored() noexcept;     // open + negotiate from config_
-  std::error_code start_stream() noexcept;    // queue all + STREAMON
+  std::error_code open_stored() noexcept;   // open + negotiate from config_
+  std::error_code start_stream() noexcept;  // queue all + STREAMON
   void enter_recovering(std::error_code why) noexcept;
   void attempt_reopen() noexcept;
   void note_streaming_error(std::error_code ec) noexcept;

@@ -43,8 +43,7 @@ std::error_code V4l2Device::open(const char* path, Direction direction, DeviceIn
   copy_name(info.driver, cap.driver);
   copy_name(info.card, cap.card);
   copy_name(info.bus, cap.bus_info);
-  info.capabilities =
-      (cap.capabilities & V4L2_CAP_DEVICE_CAPS) != 0 ? cap.device_caps : cap.capabilities;
+  info.capabilities = (cap.capabilities & V4L2_CAP_DEVICE_CAPS) != 0 ? cap.device_caps : cap.capabilities;
   const std::uint32_t wanted =
       direction == Direction::Capture ? V4L2_CAP_VIDEO_CAPTURE : V4L2_CAP_VIDEO_OUTPUT;
   std::error_code ec;
@@ -104,8 +103,7 @@ std::error_code V4l2Device::set_format(std::uint32_t width, std::uint32_t height
   if (fmt.fmt.pix.width != width || fmt.fmt.pix.height != height) return V4l2Error::SizeRefused;
   const std::uint64_t row = static_cast<std::uint64_t>(width) * bytes_per_pixel(format);
   const std::uint32_t stride = fmt.fmt.pix.bytesperline;
-  if (stride < row || stride > row * 4 ||
-      fmt.fmt.pix.sizeimage < static_cast<std::uint64_t>(stride) * height)
+  if (stride < row || stride > row * 4 || fmt.fmt.pix.sizeimage < static_cast<std::uint64_t>(stride) * height)
     return V4l2Error::BadFormatReply;
   out.format = format;
   out.width = width;

@@ -7,8 +7,10 @@ namespace markloop::v4l2 {
 
 std::uint32_t to_fourcc(PixelFormat format) noexcept {
   switch (format) {
-    case PixelFormat::Grey: return make_fourcc('G', 'R', 'E', 'Y');
-    case PixelFormat::Yuyv: return make_fourcc('Y', 'U', 'Y', 'V');
+    case PixelFormat::Grey:
+      return make_fourcc('G', 'R', 'E', 'Y');
+    case PixelFormat::Yuyv:
+      return make_fourcc('Y', 'U', 'Y', 'V');
   }
   return 0;
 }
@@ -25,8 +27,10 @@ std::uint32_t bytes_per_pixel(PixelFormat format) noexcept {
 
 const char* to_string(PixelFormat format) noexcept {
   switch (format) {
-    case PixelFormat::Grey: return "GREY";
-    case PixelFormat::Yuyv: return "YUYV";
+    case PixelFormat::Grey:
+      return "GREY";
+    case PixelFormat::Yuyv:
+      return "YUYV";
   }
   return "?";
 }
@@ -47,20 +51,34 @@ class V4l2Category final : public std::error_category {
   const char* name() const noexcept override { return "v4l2"; }
   std::string message(int value) const override {
     switch (static_cast<V4l2Error>(value)) {
-      case V4l2Error::NotACaptureDevice: return "not a video capture device";
-      case V4l2Error::NotAnOutputDevice: return "not a video output device";
-      case V4l2Error::NoStreaming: return "device does not support streaming I/O";
-      case V4l2Error::FormatRefused: return "driver refused the pixel format";
-      case V4l2Error::SizeRefused: return "driver refused the image size";
-      case V4l2Error::BadFormatReply: return "driver reported an inconsistent format";
-      case V4l2Error::FrameRateRefused: return "driver refused the frame rate";
-      case V4l2Error::TooFewBuffers: return "driver granted fewer buffers than requested";
-      case V4l2Error::TooManyBuffers: return "driver granted more buffers than supported";
-      case V4l2Error::BufferTooSmall: return "driver buffer smaller than the image";
-      case V4l2Error::BuffersExhausted: return "every buffer is held by the caller";
-      case V4l2Error::StaleFrame: return "frame view is from before a restart";
-      case V4l2Error::NotStreaming: return "device is not streaming";
-      case V4l2Error::Recovering: return "device lost, recovering";
+      case V4l2Error::NotACaptureDevice:
+        return "not a video capture device";
+      case V4l2Error::NotAnOutputDevice:
+        return "not a video output device";
+      case V4l2Error::NoStreaming:
+        return "device does not support streaming I/O";
+      case V4l2Error::FormatRefused:
+        return "driver refused the pixel format";
+      case V4l2Error::SizeRefused:
+        return "driver refused the image size";
+      case V4l2Error::BadFormatReply:
+        return "driver reported an inconsistent format";
+      case V4l2Error::FrameRateRefused:
+        return "driver refused the frame rate";
+      case V4l2Error::TooFewBuffers:
+        return "driver granted fewer buffers than requested";
+      case V4l2Error::TooManyBuffers:
+        return "driver granted more buffers than supported";
+      case V4l2Error::BufferTooSmall:
+        return "driver buffer smaller than the image";
+      case V4l2Error::BuffersExhausted:
+        return "every buffer is held by the caller";
+      case V4l2Error::StaleFrame:
+        return "frame view is from before a restart";
+      case V4l2Error::NotStreaming:
+        return "device is not streaming";
+      case V4l2Error::Recovering:
+        return "device lost, recovering";
     }
     return "unknown v4l2 error";
   }

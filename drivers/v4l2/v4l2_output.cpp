@@ -25,9 +25,12 @@ int ms_until(Clock::time_point t, Clock::time_point now) noexcept {
 
 const char* to_string(V4l2Output::State state) noexcept {
   switch (state) {
-    case V4l2Output::State::Closed: return "Closed";
-    case V4l2Output::State::Opened: return "Opened";
-    case V4l2Output::State::Streaming: return "Streaming";
+    case V4l2Output::State::Closed:
+      return "Closed";
+    case V4l2Output::State::Opened:
+      return "Opened";
+    case V4l2Output::State::Streaming:
+      return "Streaming";
   }
   return "?";
 }
@@ -134,8 +137,7 @@ std::error_code V4l2Output::acquire(OutputBuffer& out, std::chrono::milliseconds
       ++counters_.io_errors;
       return ec;
     }
-    if (ready > 0 && (pfd.revents & (POLLERR | POLLHUP | POLLNVAL)) != 0 &&
-        (pfd.revents & POLLOUT) == 0) {
+    if (ready > 0 && (pfd.revents & (POLLERR | POLLHUP | POLLNVAL)) != 0 && (pfd.revents & POLLOUT) == 0) {
       ++counters_.io_errors;
       return platform::make_error((pfd.revents & POLLHUP) != 0 ? ENODEV : EIO);
     }
@@ -145,8 +147,8 @@ std::error_code V4l2Output::acquire(OutputBuffer& out, std::chrono::milliseconds
 std::error_code V4l2Output::submit(const OutputBuffer& buffer, std::uint32_t bytes_used) noexcept {
   if (state_ != State::Streaming) return V4l2Error::NotStreaming;
   if (buffer.generation != generation_) return V4l2Error::StaleFrame;
-  if (buffer.index >= device_.buffer_count() || slots_[buffer.index] != Slot::Acquired ||
-      bytes_used == 0 || bytes_used > buffer.capacity)
+  if (buffer.index >= device_.buffer_count() || slots_[buffer.index] != Slot::Acquired || bytes_used == 0 ||
+      bytes_used > buffer.capacity)
     return std::make_error_code(std::errc::invalid_argument);
   if (auto ec = device_.queue(buffer.index, bytes_used)) {
     ++counters_.io_errors;

@@ -51,9 +51,9 @@ struct OutputBuffer {
 
 struct OutputCounters {
   std::uint64_t frames_queued = 0;
-  std::uint64_t frames_done = 0;     // returned by the driver
-  std::uint64_t buffer_errors = 0;   // returned with V4L2_BUF_FLAG_ERROR
-  std::uint64_t timeouts = 0;        // acquire() found no free buffer in time
+  std::uint64_t frames_done = 0;    // returned by the driver
+  std::uint64_t buffer_errors = 0;  // returned with V4L2_BUF_FLAG_ERROR
+  std::uint64_t timeouts = 0;       // acquire() found no free buffer in time
   std::uint64_t io_errors = 0;
 };
 

@@ -26,9 +26,9 @@ struct Marking {
 };
 
 std::vector<Marking> route_markings(double length_m, std::mt19937_64& rng) {
-  static const char* const kLabels[] = {"forward", "leftturn", "rightturn", "forward&right",
-                                        "forward&left", "bike", "xing", "ped", "stop", "diamond",
-                                        "30", "50"};
+  static const char* const kLabels[] = {"forward",      "leftturn", "rightturn", "forward&right",
+                                        "forward&left", "bike",     "xing",      "ped",
+                                        "stop",         "diamond",  "30",        "50"};
   std::discrete_distribution<int> label{18, 15, 10, 5, 5, 5, 8, 5, 5, 2, 5, 5};
   std::uniform_real_distribution<double> spacing(15.0, 60.0), coin(0.0, 1.0);
   std::vector<Marking> markings;
@@ -106,8 +106,7 @@ struct Row {
 
 // The indexed matcher, median of three runs; the reference once, when its
 // estimated time is within the limit.
-Row measure(const std::vector<MarkingRecord>& records, double reference_estimate_s,
-            double limit_s) {
+Row measure(const std::vector<MarkingRecord>& records, double reference_estimate_s, double limit_s) {
   CompatParameters p;
   Row row;
   row.records = records.size();
@@ -162,9 +161,12 @@ int main(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       return 0;
     }
-    if (i + 1 < argc && arg == "--drives") drives = std::atoi(argv[++i]);
-    else if (i + 1 < argc && arg == "--limit") limit_s = std::atof(argv[++i]);
-    else if (i + 1 < argc && arg == "--write") write = argv[++i];
+    if (i + 1 < argc && arg == "--drives")
+      drives = std::atoi(argv[++i]);
+    else if (i + 1 < argc && arg == "--limit")
+      limit_s = std::atof(argv[++i]);
+    else if (i + 1 < argc && arg == "--write")
+      write = argv[++i];
     else {
       std::fprintf(stderr, "markloop-compat-bench: unknown option %s (see --help)\n", argv[i]);
       return 2;
@@ -178,17 +180,18 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "markloop-compat-bench: %s: cannot write\n", write.c_str());
     return 1;
   }
-  std::printf("k = 4, T = 30 frames, tolerance 2 m; wall time; reference = all pairs, indexed = "
-              "markloop-replay --compat\n\n");
-  std::printf("| drives | records | sequences | complete | matches | reference s | indexed s | "
-              "speed-up | same output |\n");
+  std::printf(
+      "k = 4, T = 30 frames, tolerance 2 m; wall time; reference = all pairs, indexed = "
+      "markloop-replay --compat\n\n");
+  std::printf(
+      "| drives | records | sequences | complete | matches | reference s | indexed s | "
+      "speed-up | same output |\n");
   std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
   double last_reference_s = 0, last_reference_records = 0;
   bool all_same = true;
   for (const int n : {drives / 8, drives / 4, drives / 2, drives}) {
     const std::vector<MarkingRecord> records = synthetic_drives(n, 1);
-    const double growth =
-        last_reference_records > 0 ? double(records.size()) / last_reference_records : 0;
+    const double growth = last_reference_records > 0 ? double(records.size()) / last_reference_records : 0;
     const Row r = measure(records, last_reference_s * growth * growth, limit_s);
     char reference[32] = "-", speedup[32] = "-";
     if (r.reference_s >= 0) {
@@ -199,7 +202,9 @@ int main(int argc, char** argv) {
     }
     std::printf("| %d | %zu | %zu | %zu | %zu | %s | %.3f | %s | %s |\n", n, r.records, r.sequences,
                 r.complete, r.matches, reference, r.indexed_s, speedup,
-                r.reference_s < 0 ? "-" : r.same ? "yes" : "NO");
+                r.reference_s < 0 ? "-"
+                : r.same          ? "yes"
+                                  : "NO");
     std::fflush(stdout);
     all_same = all_same && r.same;
   }

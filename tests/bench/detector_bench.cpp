@@ -14,8 +14,8 @@
 #include <array>
 #include <bitset>
 #include <chrono>
-#include <ctime>
 #include <cstdio>
+#include <ctime>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -82,7 +82,8 @@ int main(int argc, char** argv) {
       frame_source = argv[i] + 2;
       continue;
     }
-    const char* value = markloop::cli::option_value(argc, argv, i, {"--camera", "--y4m", "--frames", "--skip"});
+    const char* value =
+        markloop::cli::option_value(argc, argv, i, {"--camera", "--y4m", "--frames", "--skip"});
     if (arg == "--camera")
       camera_path = value;
     else if (arg == "--y4m")
@@ -120,9 +121,12 @@ int main(int argc, char** argv) {
     using markloop::perception::testing::GroundRect;
     for (int k = 0; k < 20; ++k) {
       const double x = 20.0 - 0.8 * k;
-      synthetic.push_back(markloop::perception::testing::render_road(
-          camera, {{3.0, 25.0, 1.7, 1.85}, {3.0, 25.0, -1.85, -1.7}, {x, x + 2.4, 0.5, 1.0},
-                   {x, x + 2.4, -0.3, 0.2}, {x - 3, x - 0.5, -3.2, -2.4}, {x + 4, x + 4.4, -6, 6}}));
+      synthetic.push_back(markloop::perception::testing::render_road(camera, {{3.0, 25.0, 1.7, 1.85},
+                                                                              {3.0, 25.0, -1.85, -1.7},
+                                                                              {x, x + 2.4, 0.5, 1.0},
+                                                                              {x, x + 2.4, -0.3, 0.2},
+                                                                              {x - 3, x - 0.5, -3.2, -2.4},
+                                                                              {x + 4, x + 4.4, -6, 6}}));
     }
   }
   cv::Mat frame(camera.height(), camera.width(), CV_8UC1);
@@ -136,7 +140,7 @@ int main(int argc, char** argv) {
   block_spreads.reserve(frames);
   coherences.reserve(frames);
   std::array<std::size_t, 5> views{};  // frames by ViewKind
-  std::bitset<1024> cores;  // the CPUs the timed frames started on
+  std::bitset<1024> cores;             // the CPUs the timed frames started on
   for (unsigned i = 0; i < skip + frames; ++i) {
     const cv::Mat* input = &frame;
     if (!y4m_path.empty()) {
@@ -163,7 +167,8 @@ int main(int argc, char** argv) {
   }
   if (ms.empty()) markloop::cli::fail("no frames timed");
   std::printf("detect() on %dx%d frames (%s), bird's-eye %dx%d, %zu frames\n", camera.width(),
-              camera.height(), !y4m_path.empty()          ? y4m_path.c_str()
+              camera.height(),
+              !y4m_path.empty()         ? y4m_path.c_str()
               : frame_source != nullptr ? frame_source
                                         : "synthetic",
               detector.birdseye().cols(), detector.birdseye().rows(), ms.size());
@@ -182,26 +187,28 @@ int main(int argc, char** argv) {
   std::printf("| thread CPU | %.3f ms | %.3f ms | %.3f ms | %.3f ms | | |\n", percentile(cpu_ms, 0.5),
               percentile(cpu_ms, 0.9), percentile(cpu_ms, 0.99), percentile(cpu_ms, 1.0));
   if (const DetectorCounters& c = detector.counters(); c.parts_dropped + c.candidates_dropped > 0)
-    std::printf("over the caps (a frame's %zu parts, %zu candidates), not examined: %llu parts, %llu "
-                "candidates\n",
-                kMaxParts, kMaxCandidates, static_cast<unsigned long long>(c.parts_dropped),
-                static_cast<unsigned long long>(c.candidates_dropped));
+    std::printf(
+        "over the caps (a frame's %zu parts, %zu candidates), not examined: %llu parts, %llu "
+        "candidates\n",
+        kMaxParts, kMaxCandidates, static_cast<unsigned long long>(c.parts_dropped),
+        static_cast<unsigned long long>(c.candidates_dropped));
   const auto frames_of = [&](ViewKind kind) { return views[static_cast<std::size_t>(kind)]; };
-  std::printf("views: %zu road, %zu flat, %zu noisy, %zu cluttered; blocks' grey spread min %.2f, "
-              "median %.2f, max %.2f (flat below %.2f); against the pixels' min %.2f, median %.2f, "
-              "max %.2f (noisy below %.2f)\n",
-              frames_of(ViewKind::Road), frames_of(ViewKind::Flat), frames_of(ViewKind::Noisy),
-              frames_of(ViewKind::Cluttered), percentile(block_spreads, 0.0),
-              percentile(block_spreads, 0.5), percentile(block_spreads, 1.0), config.min_view_spread,
-              percentile(coherences, 0.0), percentile(coherences, 0.5), percentile(coherences, 1.0),
-              config.min_view_coherence);
+  std::printf(
+      "views: %zu road, %zu flat, %zu noisy, %zu cluttered; blocks' grey spread min %.2f, "
+      "median %.2f, max %.2f (flat below %.2f); against the pixels' min %.2f, median %.2f, "
+      "max %.2f (noisy below %.2f)\n",
+      frames_of(ViewKind::Road), frames_of(ViewKind::Flat), frames_of(ViewKind::Noisy),
+      frames_of(ViewKind::Cluttered), percentile(block_spreads, 0.0), percentile(block_spreads, 0.5),
+      percentile(block_spreads, 1.0), config.min_view_spread, percentile(coherences, 0.0),
+      percentile(coherences, 0.5), percentile(coherences, 1.0), config.min_view_coherence);
   if (config.horizon_from_lanes) {
     const DetectorCounters& c = detector.counters();
-    std::printf("horizon from the lane lines: measured in %llu frames, not in %llu; view moved %llu "
-                "times; now %d rows\n",
-                static_cast<unsigned long long>(c.horizon_measured),
-                static_cast<unsigned long long>(c.horizon_unmeasured),
-                static_cast<unsigned long long>(c.horizon_moves), detector.horizon_shift());
+    std::printf(
+        "horizon from the lane lines: measured in %llu frames, not in %llu; view moved %llu "
+        "times; now %d rows\n",
+        static_cast<unsigned long long>(c.horizon_measured),
+        static_cast<unsigned long long>(c.horizon_unmeasured),
+        static_cast<unsigned long long>(c.horizon_moves), detector.horizon_shift());
   }
   return 0;
 }

@@ -145,8 +145,7 @@ Row measure(std::size_t size, std::size_t samples, std::size_t naive_samples) {
     }
     const auto start = Clock::now();
     bool limited = false;
-    db.for_each_match(shape, mc.max_candidates_per_query, limited,
-                      [&](std::span<const LandmarkId> match) {
+    db.for_each_match(shape, mc.max_candidates_per_query, limited, [&](std::span<const LandmarkId> match) {
       std::array<Eigen::Vector2d, kK> from, to;
       for (unsigned i = 0; i < kK; ++i) {
         const Landmark* a = db.landmark(match[i]);
@@ -188,11 +187,12 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string_view arg = argv[i];
     if (arg == "--help" || arg == "-h") {
-      std::puts("usage: markloop-bench [--max N]\n\n"
-                "Times a new sequence of k=4 landmarks (query, rigid verification of the\n"
-                "candidates, insert) in the indexed ring-buffer database at 10^3 .. N stored\n"
-                "sequences (default 10^6), next to a naive all-pairs matcher like the paper's,\n"
-                "and reports memory per stored sequence and landmark. Run on an idle machine.");
+      std::puts(
+          "usage: markloop-bench [--max N]\n\n"
+          "Times a new sequence of k=4 landmarks (query, rigid verification of the\n"
+          "candidates, insert) in the indexed ring-buffer database at 10^3 .. N stored\n"
+          "sequences (default 10^6), next to a naive all-pairs matcher like the paper's,\n"
+          "and reports memory per stored sequence and landmark. Run on an idle machine.");
       return 0;
     }
     if (arg == "--max" && i + 1 < argc) {
@@ -207,15 +207,16 @@ int main(int argc, char** argv) {
     }
   }
   std::printf("k = %u; per new sequence; indexed = this engine's database, naive = all-pairs scan\n\n", kK);
-  std::printf("| sequences | indexed median | indexed p99 | naive median | naive p99 | candidates/query | bytes/sequence | bytes/landmark |\n");
+  std::printf(
+      "| sequences | indexed median | indexed p99 | naive median | naive p99 | candidates/query | "
+      "bytes/sequence | bytes/landmark |\n");
   std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (std::size_t size = 1000; size <= largest; size *= 10) {
     const std::size_t naive_samples = std::max<std::size_t>(50, 20000000 / size);
     const Row r = measure(size, 20000, std::min<std::size_t>(naive_samples, 20000));
     std::printf("| %zu | %.0f ns | %.0f ns | %.1f us | %.1f us | %.2f | %.1f | %.1f |\n", r.size,
-                r.indexed.median_ns, r.indexed.p99_ns, r.naive.median_ns / 1000.0,
-                r.naive.p99_ns / 1000.0, r.candidates_per_query, r.bytes_per_sequence,
-                r.bytes_per_landmark);
+                r.indexed.median_ns, r.indexed.p99_ns, r.naive.median_ns / 1000.0, r.naive.p99_ns / 1000.0,
+                r.candidates_per_query, r.bytes_per_sequence, r.bytes_per_landmark);
     std::fflush(stdout);
   }
   return 0;

@@ -27,8 +27,7 @@ void BM_RenderFrame(benchmark::State& state) {
   std::uint64_t frame = 0;
   for (auto _ : state) {
     const Pose2 pose = scenario->road.at(s);
-    sim::occluders_at(conditions, 0.1 * static_cast<double>(frame), scenario->road, s, pose, 3.5,
-                      occluders);
+    sim::occluders_at(conditions, 0.1 * static_cast<double>(frame), scenario->road, s, pose, 3.5, occluders);
     renderer.render(pose, 10.0, conditions, frame, occluders, image);
     benchmark::DoNotOptimize(image.data);
     s = s + 1.0 < scenario->road.length() ? s + 1.0 : 0.0;

@@ -12,8 +12,7 @@ using namespace markloop::can;
 
 namespace {
 
-CanFrame make(std::uint32_t id, bool ext, std::initializer_list<std::uint8_t> bytes,
-              std::int64_t ts = 0) {
+CanFrame make(std::uint32_t id, bool ext, std::initializer_list<std::uint8_t> bytes, std::int64_t ts = 0) {
   CanFrame f;
   f.id = id;
   f.extended = ext;
@@ -49,8 +48,8 @@ TEST_CASE("candump lines are formatted like candump -l") {
   CHECK(line_of(make(0x18FF0001, true, {0x01, 0x02}, 5'000'001'000)) ==
         "(0000000005.000001) vcan0 18FF0001#0102\n");
   CHECK(line_of(make(0x7, false, {}, 1'000'000'000), "can1") == "(0000000001.000000) can1 007#\n");
-  CHECK(line_of(make(0x800, false, {1})).empty());        // id too large for standard
-  CHECK(line_of(make(0x20000000, true, {1})).empty());    // id too large for extended
+  CHECK(line_of(make(0x800, false, {1})).empty());      // id too large for standard
+  CHECK(line_of(make(0x20000000, true, {1})).empty());  // id too large for extended
   CHECK(line_of(make(0x1, false, {1}), "").empty());
   CHECK(line_of(make(0x1, false, {1}), "has space").empty());
   CanFrame bad = make(0x1, false, {});
@@ -92,8 +91,7 @@ TEST_CASE("bad candump lines say where and what") {
   CHECK(parse_error("1700000000.123456) vcan0 123#00") == "1:expected '(' starting the timestamp");
   CHECK(parse_error("(1700000000.12345) vcan0 123#00") ==
         "18:timestamp needs exactly 6 digits of microseconds");
-  CHECK(parse_error("(1700000000.1234567) vcan0 123#00") ==
-        "19:expected ')' after 6 digits of microseconds");
+  CHECK(parse_error("(1700000000.1234567) vcan0 123#00") == "19:expected ')' after 6 digits of microseconds");
   CHECK(parse_error("(x.123456) vcan0 123#00") == "2:expected timestamp seconds (digits)");
   // Found by the fuzz target: nanoseconds past 2^63 overflowed.
   CHECK(parse_error("(17000000011.000000) vcan0 123#00") == "12:timestamp seconds too long");
@@ -103,20 +101,16 @@ TEST_CASE("bad candump lines say where and what") {
   CHECK(parse_error("(1.123456) vcan0 12#00") ==
         "18:CAN id must have 3 (standard) or 8 (extended) hex digits");
   CHECK(parse_error("(1.123456) vcan0 800#00") == "18:standard CAN id above 0x7FF");
-  CHECK(parse_error("(1.123456) vcan0 20000004#0000000000000000") ==
-        "18:error frames are not supported");
-  CHECK(parse_error("(1.123456) vcan0 12G#00") ==
-        "20:bad character in the CAN id (hex digits expected)");
+  CHECK(parse_error("(1.123456) vcan0 20000004#0000000000000000") == "18:error frames are not supported");
+  CHECK(parse_error("(1.123456) vcan0 12G#00") == "20:bad character in the CAN id (hex digits expected)");
   CHECK(parse_error("(1.123456) vcan0 123") == "21:missing '#' after the CAN id");
   CHECK(parse_error("(1.123456) vcan0 123#ABC") == "24:odd number of hex digits in the data");
   CHECK(parse_error("(1.123456) vcan0 123#0102030405060708FF") == "38:more than 8 data bytes");
   CHECK(parse_error("(1.123456) vcan0 123#R") == "22:remote (RTR) frames are not supported");
   CHECK(parse_error("(1.123456) vcan0 123##1AB") == "22:CAN FD frames are not supported");
-  CHECK(parse_error("(1.123456) vcan0 123#0G") ==
-        "23:bad character in the data (hex digits expected)");
+  CHECK(parse_error("(1.123456) vcan0 123#0G") == "23:bad character in the data (hex digits expected)");
   CHECK(parse_error("(1.123456) vcan0 123#00 X") == "24:unexpected text after the data");
-  CHECK(parse_error("(1.123456) vcan0 123#00\r") ==
-        "24:bad character in the data (hex digits expected)");
+  CHECK(parse_error("(1.123456) vcan0 123#00\r") == "24:bad character in the data (hex digits expected)");
 }
 
 TEST_CASE("candump log writer and reader round trip through a file") {

@@ -30,7 +30,9 @@ void print(const Message& message, std::uint8_t counter, std::initializer_list<F
   std::printf("\n");
 }
 
-double raw(auto value) { return static_cast<double>(value); }
+double raw(auto value) {
+  return static_cast<double>(value);
+}
 
 }  // namespace
 
@@ -39,14 +41,22 @@ int main() {
   odo.wheel_speed_m_per_s = -12.34;
   odo.yaw_rate_deg_per_s = 250.5;
   odo.wheel_speed_valid = true;
-  print(odo, 9, {{"OdoAliveCounter", 9}, {"WheelSpeed", -12.34}, {"YawRate", 250.5},
-                 {"WheelSpeedValid", 1}, {"YawRateValid", 0}});
+  print(odo, 9,
+        {{"OdoAliveCounter", 9},
+         {"WheelSpeed", -12.34},
+         {"YawRate", 250.5},
+         {"WheelSpeedValid", 1},
+         {"YawRateValid", 0}});
   odo.wheel_speed_m_per_s = 100.0;
   odo.yaw_rate_deg_per_s = -300.0;
   odo.wheel_speed_valid = false;
   odo.yaw_rate_valid = true;
-  print(odo, 15, {{"OdoAliveCounter", 15}, {"WheelSpeed", 100.0}, {"YawRate", -300.0},
-                  {"WheelSpeedValid", 0}, {"YawRateValid", 1}});
+  print(odo, 15,
+        {{"OdoAliveCounter", 15},
+         {"WheelSpeed", 100.0},
+         {"YawRate", -300.0},
+         {"WheelSpeedValid", 0},
+         {"YawRateValid", 1}});
 
   Command command;
   command.command_code = CommandCode::ResetDatabase;
@@ -74,26 +84,44 @@ int main() {
     const std::uint8_t c = counter++ % 16;
     switch (page) {
       case LoopPage::Query:
-        print(loop, c, {{"LoopAliveCounter", c}, {"LoopPage", p}, {"MatchId", 77}, {"QueryFrame", 3000000001.0},
-                        {"SequenceLength", 6}});
+        print(loop, c,
+              {{"LoopAliveCounter", c},
+               {"LoopPage", p},
+               {"MatchId", 77},
+               {"QueryFrame", 3000000001.0},
+               {"SequenceLength", 6}});
         break;
       case LoopPage::Match:
-        print(loop, c, {{"LoopAliveCounter", c}, {"LoopPage", p}, {"MatchId", 77}, {"MatchFrame", 1234567},
-                        {"MatchScore", 0.876}});
+        print(loop, c,
+              {{"LoopAliveCounter", c},
+               {"LoopPage", p},
+               {"MatchId", 77},
+               {"MatchFrame", 1234567},
+               {"MatchScore", 0.876}});
         break;
       case LoopPage::QueryTime:
-        print(loop, c, {{"LoopAliveCounter", c}, {"LoopPage", p}, {"MatchId", 77}, {"QueryTime", 100000.001}});
+        print(loop, c,
+              {{"LoopAliveCounter", c}, {"LoopPage", p}, {"MatchId", 77}, {"QueryTime", 100000.001}});
         break;
       case LoopPage::MatchTime:
         print(loop, c, {{"LoopAliveCounter", c}, {"LoopPage", p}, {"MatchId", 77}, {"MatchTime", 41.152}});
         break;
       case LoopPage::Translation:
-        print(loop, c, {{"LoopAliveCounter", c}, {"LoopPage", p}, {"MatchId", 77}, {"PoseDx", -2.71},
-                        {"PoseDy", 0.35}, {"PoseValid", 1}});
+        print(loop, c,
+              {{"LoopAliveCounter", c},
+               {"LoopPage", p},
+               {"MatchId", 77},
+               {"PoseDx", -2.71},
+               {"PoseDy", 0.35},
+               {"PoseValid", 1}});
         break;
       case LoopPage::RotationResidual:
-        print(loop, c, {{"LoopAliveCounter", c}, {"LoopPage", p}, {"MatchId", 77}, {"PoseDyaw", -12.34},
-                        {"PoseResidual", 0.042}});
+        print(loop, c,
+              {{"LoopAliveCounter", c},
+               {"LoopPage", p},
+               {"MatchId", 77},
+               {"PoseDyaw", -12.34},
+               {"PoseResidual", 0.042}});
         break;
     }
   }
@@ -117,24 +145,52 @@ int main() {
     const std::uint8_t c = counter++;
     switch (page) {
       case StatusPage::Processing:
-        print(status, c, {{"StatusAliveCounter", c}, {"StatusPage", p}, {"SystemState", raw(SystemState::Running)},
-                          {"FaultCameraLost", 1}, {"FaultOdometryTimeout", 0}, {"FaultBusError", 0},
-                          {"FaultOverrun", 1}, {"FramesProcessed", 987654321}, {"DatabaseFill", 37.5}});
+        print(status, c,
+              {{"StatusAliveCounter", c},
+               {"StatusPage", p},
+               {"SystemState", raw(SystemState::Running)},
+               {"FaultCameraLost", 1},
+               {"FaultOdometryTimeout", 0},
+               {"FaultBusError", 0},
+               {"FaultOverrun", 1},
+               {"FramesProcessed", 987654321},
+               {"DatabaseFill", 37.5}});
         break;
       case StatusPage::Timing:
-        print(status, c, {{"StatusAliveCounter", c}, {"StatusPage", p}, {"SystemState", raw(SystemState::Running)},
-                          {"FaultCameraLost", 1}, {"FaultOdometryTimeout", 0}, {"FaultBusError", 0},
-                          {"FaultOverrun", 1}, {"FramesDropped", 4321}, {"LoopTimeMax", 8.76}});
+        print(status, c,
+              {{"StatusAliveCounter", c},
+               {"StatusPage", p},
+               {"SystemState", raw(SystemState::Running)},
+               {"FaultCameraLost", 1},
+               {"FaultOdometryTimeout", 0},
+               {"FaultBusError", 0},
+               {"FaultOverrun", 1},
+               {"FramesDropped", 4321},
+               {"LoopTimeMax", 8.76}});
         break;
       case StatusPage::Database:
-        print(status, c, {{"StatusAliveCounter", c}, {"StatusPage", p}, {"SystemState", raw(SystemState::Running)},
-                          {"FaultCameraLost", 1}, {"FaultOdometryTimeout", 0}, {"FaultBusError", 0},
-                          {"FaultOverrun", 1}, {"LandmarkCount", 262144}, {"SequenceCount", 1000001}});
+        print(status, c,
+              {{"StatusAliveCounter", c},
+               {"StatusPage", p},
+               {"SystemState", raw(SystemState::Running)},
+               {"FaultCameraLost", 1},
+               {"FaultOdometryTimeout", 0},
+               {"FaultBusError", 0},
+               {"FaultOverrun", 1},
+               {"LandmarkCount", 262144},
+               {"SequenceCount", 1000001}});
         break;
       case StatusPage::Perception:
-        print(status, c, {{"StatusAliveCounter", c}, {"StatusPage", p}, {"SystemState", raw(SystemState::Running)},
-                          {"FaultCameraLost", 1}, {"FaultOdometryTimeout", 0}, {"FaultBusError", 0},
-                          {"FaultOverrun", 1}, {"FaultCameraBlind", 1}, {"FramesBlind", 3000000000.0}});
+        print(status, c,
+              {{"StatusAliveCounter", c},
+               {"StatusPage", p},
+               {"SystemState", raw(SystemState::Running)},
+               {"FaultCameraLost", 1},
+               {"FaultOdometryTimeout", 0},
+               {"FaultBusError", 0},
+               {"FaultOverrun", 1},
+               {"FaultCameraBlind", 1},
+               {"FramesBlind", 3000000000.0}});
         break;
     }
   }

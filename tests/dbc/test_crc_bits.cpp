@@ -105,6 +105,8 @@ TEST_CASE("insert leaves neighbouring bits alone; signed values sign-extend") {
 }
 
 TEST_CASE("disjoint detects overlapping layouts") {
-  static_assert(disjoint({SignalLayout{0, 8, ByteOrder::Intel, false}, SignalLayout{15, 8, ByteOrder::Motorola, false}}));
-  static_assert(!disjoint({SignalLayout{0, 9, ByteOrder::Intel, false}, SignalLayout{15, 8, ByteOrder::Motorola, false}}));
+  static_assert(disjoint(
+      {SignalLayout{0, 8, ByteOrder::Intel, false}, SignalLayout{15, 8, ByteOrder::Motorola, false}}));
+  static_assert(!disjoint(
+      {SignalLayout{0, 9, ByteOrder::Intel, false}, SignalLayout{15, 8, ByteOrder::Motorola, false}}));
 }

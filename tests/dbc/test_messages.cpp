@@ -28,7 +28,8 @@ template <typename Message>
 Message round_trip(const Message& message) {
   const Bytes bytes = encoded(message);
   Message decoded{};
-  REQUIRE(decode(std::span<const std::uint8_t>{bytes.data(), Message::kLength}, decoded) == DecodeError::None);
+  REQUIRE(decode(std::span<const std::uint8_t>{bytes.data(), Message::kLength}, decoded) ==
+          DecodeError::None);
   return decoded;
 }
 
@@ -36,8 +37,8 @@ Message round_trip(const Message& message) {
 // check can fail.
 template <typename Message>
 void reseal(Bytes& bytes) {
-  bytes[Message::kCrcByte] = e2e_crc(Message::kDataId, std::span<const std::uint8_t>{bytes.data(), Message::kLength},
-                                     Message::kCrcByte);
+  bytes[Message::kCrcByte] = e2e_crc(
+      Message::kDataId, std::span<const std::uint8_t>{bytes.data(), Message::kLength}, Message::kCrcByte);
 }
 
 template <typename Message>
@@ -56,7 +57,8 @@ static_assert(Command::kId == 0x1A0 && Command::kLength == 4 && !Command::kIsCyc
 static_assert(LoopDetection::kId == 0x2A0 && LoopDetection::kPages.size() == 6);
 static_assert(Status::kId == 0x2B0 && Status::kCycleTime == std::chrono::milliseconds{100});
 static_assert(Status::kPages.size() == 4);
-static_assert(layout::loop_detection::kQueryFrame.length == 32 && layout::loop_detection::kMatchFrame.length == 32);
+static_assert(layout::loop_detection::kQueryFrame.length == 32 &&
+              layout::loop_detection::kMatchFrame.length == 32);
 static_assert(layout::vehicle_odometry::kWheelSpeed.order == ByteOrder::Motorola);
 static_assert(kReceivedIds == std::array<std::uint32_t, 2>{0x120, 0x1A0});
 static_assert(kSentIds == std::array<std::uint32_t, 2>{0x2A0, 0x2B0});
@@ -256,7 +258,7 @@ TEST_CASE("LoopDetection saturates to its ranges") {
   loop.query_time_s = 5e6;
   CHECK(round_trip(loop).query_time_s == Catch::Approx(4294967.295));
   loop.loop_page = LoopPage::Translation;
-  loop.pose_dx_m = 300.004;  // rounds onto the maximum
+  loop.pose_dx_m = 300.004;   // rounds onto the maximum
   loop.pose_dy_m = -300.006;  // beyond: saturates
   LoopDetection back = round_trip(loop);
   CHECK(back.pose_dx_m == Catch::Approx(300.0));

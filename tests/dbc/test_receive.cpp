@@ -24,7 +24,9 @@ CanFrame odometry_frame(std::uint8_t counter) {
   return frame;
 }
 
-std::span<const std::uint8_t> payload(const CanFrame& frame) { return {frame.data.data(), frame.length}; }
+std::span<const std::uint8_t> payload(const CanFrame& frame) {
+  return {frame.data.data(), frame.length};
+}
 
 }  // namespace
 
@@ -60,7 +62,7 @@ TEST_CASE("decode with E2E state: repeated, skipped, wrapped counters") {
   E2eReceiverState e2e;
   VehicleOdometry out;
   CHECK(decode(payload(odometry_frame(15)), e2e, out) == DecodeError::None);
-  CHECK(decode(payload(odometry_frame(0)), e2e, out) == DecodeError::None);  // 15 -> 0
+  CHECK(decode(payload(odometry_frame(0)), e2e, out) == DecodeError::None);        // 15 -> 0
   CHECK(decode(payload(odometry_frame(0)), e2e, out) == DecodeError::BadCounter);  // repeated
   CHECK(decode(payload(odometry_frame(2)), e2e, out) == DecodeError::BadCounter);  // 1 skipped
   CHECK(decode(payload(odometry_frame(3)), e2e, out) == DecodeError::None);
@@ -134,7 +136,8 @@ TEST_CASE("Receiver of an event message never times out and keeps its counter") 
 
 namespace {
 
-std::array<CanFrame, 6> loop_frames(std::uint8_t match_id, std::uint32_t query_frame, E2eSenderState& sender) {
+std::array<CanFrame, 6> loop_frames(std::uint8_t match_id, std::uint32_t query_frame,
+                                    E2eSenderState& sender) {
   LoopDetection loop;
   loop.match_id = match_id;
   loop.query_frame = query_frame;

@@ -11,11 +11,11 @@
 #include <span>
 #include <system_error>
 
-#include "drivers/can/can_frame.hpp"
 #include "app/ecu/ecu.hpp"
+#include "app/perception/marking_detector.hpp"
 #include "dbc/loop_detection_assembler.hpp"
 #include "dbc/markloop_messages.hpp"
-#include "app/perception/marking_detector.hpp"
+#include "drivers/can/can_frame.hpp"
 
 namespace markloop::ecu::testing {
 
@@ -41,8 +41,10 @@ class RecordingBus final : public can::CanFrameSink {
       }
       (void)page;
     } else if (frame.id == dbc::Status::kId) {
-      if (dbc::decode(frame.payload(), status_e2e, status) != dbc::DecodeError::None) ++errors;
-      else ++status_pages;
+      if (dbc::decode(frame.payload(), status_e2e, status) != dbc::DecodeError::None)
+        ++errors;
+      else
+        ++status_pages;
     } else {
       ++errors;
     }

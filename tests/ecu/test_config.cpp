@@ -9,10 +9,10 @@
 
 #include "app/ecu/config.hpp"
 
-using markloop::ecu::EcuConfig;
-using markloop::ecu::load_config_file;
 using Catch::Matchers::ContainsSubstring;
 using Catch::Matchers::StartsWith;
+using markloop::ecu::EcuConfig;
+using markloop::ecu::load_config_file;
 
 namespace {
 std::string write_temp(const std::string& name, const std::string& text) {
@@ -52,7 +52,8 @@ TEST_CASE("config errors carry file, line and the problem") {
   CHECK_THAT(load_config_file(path, config), ContainsSubstring(":1: status.period_ms: not a whole number"));
 
   path = write_temp("real.conf", "engine.distance_tolerance_m = 0.5m\n");
-  CHECK_THAT(load_config_file(path, config), ContainsSubstring(":1: engine.distance_tolerance_m: not a number"));
+  CHECK_THAT(load_config_file(path, config),
+             ContainsSubstring(":1: engine.distance_tolerance_m: not a number"));
 
   path = write_temp("bool.conf", "realtime.mlockall = maybe\n");
   CHECK_THAT(load_config_file(path, config), ContainsSubstring(":1: realtime.mlockall: not true/false"));

@@ -6,8 +6,8 @@
 #include <fstream>
 
 #include "app/ecu/ecu.hpp"
-#include "tests/ecu/ecu_test_support.hpp"
 #include "app/perception/camera_model.hpp"
+#include "tests/ecu/ecu_test_support.hpp"
 #include "tests/perception/synthetic_road.hpp"
 
 using namespace markloop;
@@ -28,8 +28,8 @@ EcuConfig test_config() {
 struct DriveOptions {
   Nanoseconds odometry_gap_from{Nanoseconds::max()};
   Nanoseconds odometry_gap_to{Nanoseconds::max()};
-  unsigned foreign_per_odometry = 0;    // foreign frames around each odometry frame
-  unsigned corrupt_every = 0;           // every Nth odometry frame has a bad CRC
+  unsigned foreign_per_odometry = 0;  // foreign frames around each odometry frame
+  unsigned corrupt_every = 0;         // every Nth odometry frame has a bad CRC
 };
 
 // Drives the loop road from `from` to `to`: odometry every 20 ms, a frame

@@ -20,9 +20,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/ecu/ecu.hpp"
-#include "tests/ecu/ecu_test_support.hpp"
 #include "app/perception/camera_model.hpp"
 #include "platform/os.hpp"
+#include "tests/ecu/ecu_test_support.hpp"
 
 #define MARKLOOP_COUNT_C_ALLOCATIONS 1
 #include "tests/support/count_allocations.hpp"
@@ -115,8 +115,8 @@ TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays fl
   REQUIRE(anonymous_samples.size() >= 7);
 #ifndef MARKLOOP_UNDER_EMULATOR  // under qemu-user these are the emulator's pages
   for (std::size_t i = 1; i < anonymous_samples.size(); ++i) {
-    INFO("anonymous RSS at " << 10 * i << " min: " << anonymous_samples[i] << " bytes, at 0: "
-                             << anonymous_samples[0]);
+    INFO("anonymous RSS at " << 10 * i << " min: " << anonymous_samples[i]
+                             << " bytes, at 0: " << anonymous_samples[0]);
     CHECK(anonymous_samples[i] == anonymous_samples[0]);
   }
 #endif

@@ -36,8 +36,8 @@ struct CountingSink final : MatchSink {
 
 // Drives along y = 0 from x_from to x_to (world), seeing `markings` 4..20 m
 // ahead; the car's pose is `offset` + its position (a drift-free odometry).
-void drive(SequenceEngine& engine, CountingSink& sink, const std::vector<Marking>& markings,
-           double x_from, double x_to, FrameIndex& frame, double& t) {
+void drive(SequenceEngine& engine, CountingSink& sink, const std::vector<Marking>& markings, double x_from,
+           double x_to, FrameIndex& frame, double& t) {
   std::array<Observation, SequenceEngine::kMaxObservationsPerFrame> seen{};
   for (double x = x_from; x < x_to; x += 1.0, t += 0.1) {
     std::size_t n = 0;

@@ -69,7 +69,8 @@ std::vector<char> read_bytes(const std::string& path) {
 }
 
 void write_bytes(const std::string& path, const std::vector<char>& bytes, std::size_t count) {
-  std::ofstream(path, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(count));
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(bytes.data(), static_cast<std::streamsize>(count));
 }
 
 std::size_t files_named(const std::string& dir, const std::string& part) {
@@ -277,7 +278,8 @@ TEST_CASE("a failed save leaves the previous map intact and no temporary behind"
   // The disk fills up mid-save (a file size limit stands in for it, root or not).
   SequenceDatabase second(small_capacity(), match, kK);
   fill(second, 20, 7);
-  struct sigaction ignore {}, previous {};
+  struct sigaction ignore {
+  }, previous{};
   ignore.sa_handler = SIG_IGN;
   REQUIRE(::sigaction(SIGXFSZ, &ignore, &previous) == 0);
   rlimit limit{}, saved_limit{};

@@ -3,8 +3,8 @@
 
 #include <cstdlib>
 
-#include "tests/ecu/notify_listener.hpp"
 #include "platform/os.hpp"
+#include "tests/ecu/notify_listener.hpp"
 
 using markloop::ecu::testing::NotifyListener;
 

@@ -13,13 +13,13 @@
 #include <thread>
 #include <vector>
 
-#include "drivers/can/candump_log.hpp"
 #include "app/ecu/config.hpp"
 #include "app/ecu/map_store.hpp"
-#include "tests/ecu/ecu_test_support.hpp"
 #include "app/io/y4m.hpp"
-#include "tests/ecu/notify_listener.hpp"
 #include "app/perception/camera_model.hpp"
+#include "drivers/can/candump_log.hpp"
+#include "tests/ecu/ecu_test_support.hpp"
+#include "tests/ecu/notify_listener.hpp"
 
 using namespace markloop;
 using namespace std::chrono_literals;
@@ -68,10 +68,10 @@ int run_and_signal(const fs::path& dir, int signal_number, const fs::path& map,
       args.push_back(emulator.substr(start, end - start));
     }
 #endif
-    for (const char* a : {MARKLOOP_BINARY, "--camera-file", frames.c_str(), "--can-in", odometry.c_str(),
-                          "--can-out", out.c_str(), "--map", map_path.c_str(), "--realtime", "--quiet",
-                          "--set", "realtime.mlockall=false", "--set", "database.landmark_capacity=1024",
-                          "--set", "database.sequence_capacity=1024"})
+    for (const char* a :
+         {MARKLOOP_BINARY, "--camera-file", frames.c_str(), "--can-in", odometry.c_str(), "--can-out",
+          out.c_str(), "--map", map_path.c_str(), "--realtime", "--quiet", "--set", "realtime.mlockall=false",
+          "--set", "database.landmark_capacity=1024", "--set", "database.sequence_capacity=1024"})
       args.emplace_back(a);
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());

@@ -37,9 +37,8 @@ TEST_CASE("compat: empty input gives no matches", "[compat]") {
 // Complete: [0 40] A,B (0,5); [40 3100] B,A; [3100 3140] A,B (0,5.5).
 // [0 40] vs [3100 3140]: labels equal, frame gaps 3100 >= 3000, |5-5.5| <= 2.
 TEST_CASE("compat: sequences follow the frame-gap and last-sequence rules", "[compat]") {
-  const std::vector<MarkingRecord> records{
-      rec(0, 0, 0, 0, "A"), rec(10, 1, 0, 0, "B"), rec(40, 0, 0, 5, "B"),
-      rec(3100, 0, 0, 100, "A"), rec(3140, 0, 0, 105.5f, "B")};
+  const std::vector<MarkingRecord> records{rec(0, 0, 0, 0, "A"), rec(10, 1, 0, 0, "B"), rec(40, 0, 0, 5, "B"),
+                                           rec(3100, 0, 0, 100, "A"), rec(3140, 0, 0, 105.5f, "B")};
   const auto matches = run(records, 2);
   REQUIRE(matches.size() == 1);
   CHECK(matches[0].earlier == std::vector<int>{0, 40});
@@ -51,8 +50,8 @@ TEST_CASE("compat: sequences follow the frame-gap and last-sequence rules", "[co
 //   r2 f3000 A (0,0,100) -> [30 3000], start [3000]
 //   r3 f3030 B (0,0,105) -> [3000 3030] d=5, start [3030]
 TEST_CASE("compat: gap 3000 and tolerance 2 m are inclusive", "[compat]") {
-  std::vector<MarkingRecord> records{rec(0, 0, 0, 0, "A"), rec(30, 3, 0, 0, "B"),
-                                     rec(3000, 0, 0, 100, "A"), rec(3030, 0, 0, 105, "B")};
+  std::vector<MarkingRecord> records{rec(0, 0, 0, 0, "A"), rec(30, 3, 0, 0, "B"), rec(3000, 0, 0, 100, "A"),
+                                     rec(3030, 0, 0, 105, "B")};
   auto matches = run(records, 2);
   REQUIRE(matches.size() == 1);
   CHECK(matches[0].earlier == std::vector<int>{0, 30});

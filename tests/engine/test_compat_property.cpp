@@ -21,18 +21,19 @@ namespace {
 
 using Rng = std::mt19937_64;
 
-int uniform(Rng& rng, int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); }
+int uniform(Rng& rng, int lo, int hi) {
+  return std::uniform_int_distribution<int>(lo, hi)(rng);
+}
 
 CompatParameters random_parameters(Rng& rng) {
-  static const float kTolerances[] = {0.0f, 0.25f, 0.5f, 1.0f, 1.0f, 2.0f, 2.0f, 3.0f, 0.1f, -1.0f,
-                                      std::numeric_limits<float>::infinity()};
+  static const float kTolerances[] = {
+      0.0f, 0.25f, 0.5f, 1.0f, 1.0f, 2.0f, 2.0f, 3.0f, 0.1f, -1.0f, std::numeric_limits<float>::infinity()};
   static const int kGaps[] = {-1, 0, 1, 1, 2, 2, 3, 5};
   CompatParameters p;
   p.k = static_cast<unsigned>(uniform(rng, 2, 6));
   p.frame_gap = kGaps[uniform(rng, 0, 7)];
-  p.distance_tolerance = uniform(rng, 0, 4) == 0
-                             ? std::uniform_real_distribution<float>(0.0f, 3.0f)(rng)
-                             : kTolerances[uniform(rng, 0, 10)];
+  p.distance_tolerance = uniform(rng, 0, 4) == 0 ? std::uniform_real_distribution<float>(0.0f, 3.0f)(rng)
+                                                 : kTolerances[uniform(rng, 0, 10)];
   return p;
 }
 
@@ -62,8 +63,7 @@ std::vector<MarkingRecord> random_records(Rng& rng, const CompatParameters& p) {
       if (uniform(rng, 0, 20) == 0) r.label = kLabels[uniform(rng, 0, 2)];
       if (uniform(rng, 0, 10) > 0) records.push_back(r);  // a marking missed now and then
     }
-    offset += route.back().frame - route.front().frame + 100 * step +
-              uniform(rng, -2 * step, 3 * step);
+    offset += route.back().frame - route.front().frame + 100 * step + uniform(rng, -2 * step, 3 * step);
   }
   if (uniform(rng, 0, 5) == 0 && records.size() > 2)  // records out of frame order
     std::swap(records[std::size_t(uniform(rng, 0, int(records.size()) - 1))], records.back());

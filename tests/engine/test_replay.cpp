@@ -54,7 +54,8 @@ void simulated_drive(std::vector<MarkingRecord>& records, std::vector<Pose2>& po
   while (drive.next(frame)) {
     poses.push_back(frame.estimate.pose);
     for (const Observation& o : frame.observations)
-      records.push_back({static_cast<std::int32_t>(frame.estimate.frame), -o.y, 1.5f, o.x, names.at(o.label), 0});
+      records.push_back(
+          {static_cast<std::int32_t>(frame.estimate.frame), -o.y, 1.5f, o.x, names.at(o.label), 0});
   }
 }
 
@@ -66,8 +67,9 @@ class Collect final : public MatchSink {
 
 // Every frame from 0 to the last fed to the engine, as markloop-replay once
 // did: the reference the sparse feeding must agree with.
-std::vector<MatchEvent> every_frame(const std::vector<MarkingRecord>& records, const std::vector<Pose2>& poses,
-                                    const EngineConfig& config, double fps, EngineCounters& counters) {
+std::vector<MatchEvent> every_frame(const std::vector<MarkingRecord>& records,
+                                    const std::vector<Pose2>& poses, const EngineConfig& config, double fps,
+                                    EngineCounters& counters) {
   std::vector<const MarkingRecord*> ordered;
   for (const MarkingRecord& r : records) ordered.push_back(&r);
   std::stable_sort(ordered.begin(), ordered.end(),
@@ -117,7 +119,9 @@ TEST_CASE("replay: frames without records are skipped with the same matches", "[
   std::vector<Pose2> poses;
   simulated_drive(records, poses);
   EngineConfig config;
-  SECTION("no poses") { check_same_matches(records, {}, config, 10.0); }
+  SECTION("no poses") {
+    check_same_matches(records, {}, config, 10.0);
+  }
   SECTION("no poses, gaps of several seconds between the records") {
     for (MarkingRecord& r : records) r.frame += 37 * (r.frame / 90);
     check_same_matches(records, {}, config, 10.0);
@@ -131,7 +135,9 @@ TEST_CASE("replay: frames without records are skipped with the same matches", "[
     poses.resize(poses.size() / 2);
     check_same_matches(records, poses, config, 10.0);
   }
-  SECTION("poses for every frame") { check_same_matches(records, poses, config, 10.0); }
+  SECTION("poses for every frame") {
+    check_same_matches(records, poses, config, 10.0);
+  }
 }
 
 TEST_CASE("replay: a record at the largest frame number takes no longer than the others", "[replay]") {

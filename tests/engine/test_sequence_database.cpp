@@ -19,8 +19,7 @@ Landmark at(double x, double y, Label label) {
   return l;
 }
 
-std::vector<std::vector<LandmarkId>> matches_of(const SequenceDatabase& db,
-                                                const SequenceShape& shape) {
+std::vector<std::vector<LandmarkId>> matches_of(const SequenceDatabase& db, const SequenceShape& shape) {
   std::vector<std::vector<LandmarkId>> found;
   bool limited = false;
   db.for_each_match(shape, 1u << 30, limited, [&](std::span<const LandmarkId> ids) {
@@ -38,9 +37,9 @@ TEST_CASE("distance tolerance is absolute plus relative", "[database]") {
   config.distance_tolerance_abs_m = 0.5;
   config.distance_tolerance_rel = 0.02;
   const DistanceQuantiser q(config);
-  CHECK(q.within_tolerance(10.0, 10.6));   // 0.6 <= 0.5 + 0.2120
+  CHECK(q.within_tolerance(10.0, 10.6));        // 0.6 <= 0.5 + 0.2120
   CHECK_FALSE(q.within_tolerance(10.0, 10.8));  // 0.8 > 0.716
-  CHECK(q.within_tolerance(100.0, 102.4)); // 2.4 <= 2.548
+  CHECK(q.within_tolerance(100.0, 102.4));      // 2.4 <= 2.548
   CHECK_FALSE(q.within_tolerance(100.0, 102.6));
 }
 

@@ -83,7 +83,10 @@ TEST_CASE("a missed marking on one lane leaves the chains through the other", "[
   EngineConfig config;
   config.chain.k = 3;
   config.match.min_separation_s = 0;
-  struct Mark { double x, y; Label label; };
+  struct Mark {
+    double x, y;
+    Label label;
+  };
   std::vector<Mark> world;
   for (int row = 0; row < 12; ++row) {
     const double x = 30.0 + row * 20.0 + (row % 3) * 3.0;  // irregular spacing
@@ -131,7 +134,10 @@ TEST_CASE("a missed marking on one lane leaves the chains through the other", "[
 // second that of row 9. Without a skipped row every sequence through either
 // marking is lost; with one, only the rows whose own marking is missing.
 TEST_CASE("a marking missed on one visit breaks no sequence when a row may be skipped", "[engine]") {
-  struct Mark { double x; Label label; };
+  struct Mark {
+    double x;
+    Label label;
+  };
   std::vector<Mark> world;
   // Spacings and labels that no stretch of the road repeats, skipped rows included.
   const double spacing[14] = {0, 17, 23, 19, 29, 16, 25, 21, 31, 18, 27, 22, 33, 20};
@@ -206,8 +212,10 @@ TEST_CASE("the engine rejects bad configurations", "[engine]") {
 // A straight road with one marking per row, driven twice; on the second pass
 // the odometry has turned the world by 0.5 degrees about the start, and the
 // markings' positions carry a fixed, made-up error per marking and pass.
-TEST_CASE("a landmark is represented by the frame in which the car passed it, and a run of "
-          "matches refines the pose", "[engine]") {
+TEST_CASE(
+    "a landmark is represented by the frame in which the car passed it, and a run of "
+    "matches refines the pose",
+    "[engine]") {
   EngineConfig config;
   config.chain.k = 3;
   config.match.min_separation_s = 0;
@@ -274,8 +282,7 @@ TEST_CASE("a landmark is represented by the frame in which the car passed it, an
 // `lateral_m` to the side (where routes part at a junction, the car turns
 // off before the last marking): the markings agree, and the loop's two
 // frames lie apart by that much.
-TEST_CASE("a loop whose two frames lie further apart than max_frame_distance_m is not reported",
-          "[engine]") {
+TEST_CASE("a loop whose two frames lie further apart than max_frame_distance_m is not reported", "[engine]") {
   const auto loops = [](double lateral_m, double max_frame_distance_m) {
     EngineConfig config;
     config.chain.k = 3;

@@ -23,8 +23,8 @@
 #include <numbers>
 #include <string>
 
-#include "drivers/can/candump_log.hpp"
 #include "dbc/markloop_messages.hpp"
+#include "drivers/can/candump_log.hpp"
 
 namespace markloop::eval::fixture {
 
@@ -71,8 +71,8 @@ class CandumpFile {
 // Sends the six pages of one detection starting at `t_s`, 1 us apart; the
 // page with index `broken_page` (if < 6) gets a wrong CRC.
 inline void send_detection(CandumpFile& log, dbc::E2eSenderState& sender, std::uint8_t id,
-                           std::uint32_t query, std::uint32_t match, double dx, double dy,
-                           double dyaw_deg, double t_s, std::size_t broken_page = 6) {
+                           std::uint32_t query, std::uint32_t match, double dx, double dy, double dyaw_deg,
+                           double t_s, std::size_t broken_page = 6) {
   dbc::LoopDetection m;
   m.match_id = id;
   m.query_frame = query;
@@ -92,8 +92,8 @@ inline void send_detection(CandumpFile& log, dbc::E2eSenderState& sender, std::u
   }
 }
 
-inline void send_status(CandumpFile& log, dbc::E2eSenderState& sender, double t_s,
-                        std::uint32_t processed, double loop_time_ms, bool overrun) {
+inline void send_status(CandumpFile& log, dbc::E2eSenderState& sender, double t_s, std::uint32_t processed,
+                        double loop_time_ms, bool overrun) {
   dbc::Status s;
   s.system_state = dbc::SystemState::Running;
   s.fault_overrun = overrun;
@@ -128,8 +128,8 @@ inline void write_run(const std::filesystem::path& dir) {
   char line[128];
   for (std::size_t f = 0; f < kFrames; ++f) {
     const RoutePoint p = route_at(static_cast<double>(f));
-    std::snprintf(line, sizeof line, "%zu,%.3f,%.4f,%.4f,%.6f\n", f, static_cast<double>(f) / kFps,
-                  p.x, p.y, p.yaw);
+    std::snprintf(line, sizeof line, "%zu,%.3f,%.4f,%.4f,%.6f\n", f, static_cast<double>(f) / kFps, p.x, p.y,
+                  p.yaw);
     frames += line;
   }
   write_text(dir / "frames.csv", frames);
@@ -138,17 +138,18 @@ inline void write_run(const std::filesystem::path& dir) {
              "3,bike,0,60,-1.5708\n");
   write_text(dir / "visible.csv",
              "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n"
-             "10,0,stop," + rectangle(100, 300, 200, 340) + "\n" +
-             "10,1,forward," + rectangle(600, 300, 640, 400) + "\n" +
-             "11,2,crosswalk," + rectangle(0, 0, 100, 100) + "\n" +
-             "11,3,bike," + rectangle(900, 200, 950, 260) + "\n");
+             "10,0,stop," +
+                 rectangle(100, 300, 200, 340) + "\n" + "10,1,forward," + rectangle(600, 300, 640, 400) +
+                 "\n" + "11,2,crosswalk," + rectangle(0, 0, 100, 100) + "\n" + "11,3,bike," +
+                 rectangle(900, 200, 950, 260) + "\n");
   write_text(dir / "ecu-detections.csv",
              "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
-             "10,stop,0.9," + rectangle(110, 305, 210, 345) + ",8.0,0.5\n" +
-             "10,leftturn,0.7," + rectangle(598, 310, 642, 390) + ",9.0,-1.5\n" +
-             "10,ped,0.6," + rectangle(300, 100, 340, 140) + ",20.0,3.0\n" +
-             "11,crosswalk,0.8," + rectangle(52, 0, 152, 100) + ",7.0,0.0\n" +
-             "12,ped,0.5," + rectangle(300, 100, 340, 140) + ",20.0,3.0\n");
+             "10,stop,0.9," +
+                 rectangle(110, 305, 210, 345) + ",8.0,0.5\n" + "10,leftturn,0.7," +
+                 rectangle(598, 310, 642, 390) + ",9.0,-1.5\n" + "10,ped,0.6," +
+                 rectangle(300, 100, 340, 140) + ",20.0,3.0\n" + "11,crosswalk,0.8," +
+                 rectangle(52, 0, 152, 100) + ",7.0,0.0\n" + "12,ped,0.5," + rectangle(300, 100, 340, 140) +
+                 ",20.0,3.0\n");
   // The ECU's odometry frame is the truth's here: the stop line's landmark
   // lies 0.2 m from it; the ped one on no marking.
   write_text(dir / "ecu-landmarks.csv",

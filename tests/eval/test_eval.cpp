@@ -11,14 +11,14 @@
 #include <string>
 #include <vector>
 
+#include "app/perception/marking_classes.hpp"
 #include "app/tools/eval/can_log.hpp"
 #include "app/tools/eval/figure.hpp"
 #include "app/tools/eval/inputs.hpp"
 #include "app/tools/eval/scoring.hpp"
-#include "tests/eval/eval_fixture.hpp"
-#include "app/perception/marking_classes.hpp"
 #include "app/tools/replay/paper_format.hpp"
 #include "app/tools/replay/truth_judge.hpp"
+#include "tests/eval/eval_fixture.hpp"
 
 namespace fs = std::filesystem;
 using namespace markloop;
@@ -35,7 +35,9 @@ fs::path fresh_dir(const std::string& name) {
   return dir;
 }
 
-Label label_of(std::string_view name) { return *perception::marking_class_from_name(name); }
+Label label_of(std::string_view name) {
+  return *perception::marking_class_from_name(name);
+}
 
 }  // namespace
 
@@ -223,10 +225,17 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
   const Label forward = label_of("forward"), leftturn = label_of("leftturn"), stop = label_of("stop"),
               bike = label_of("bike"), rail = label_of("rail"), ped = label_of("ped");
   const std::vector<WorldMarking> world = {
-      {1, forward, 30.0, 0.0, 0.0},  {2, stop, 60.0, 1.0, 0.0},  {3, bike, 90.0, -2.0, 0.0},
-      {4, rail, 120.0, 0.0, 0.0},    {5, ped, 150.0, 8.0, 0.0},   {6, stop, 200.0, 0.0, 0.0},
-      {8, bike, 300.0, 0.0, 0.0},    {9, stop, 15.0, 0.0, 0.0},   {10, stop, 390.0, 0.0, 0.0},
-      {11, forward, 350.0, 0.0, 0.0},  {12, label_of("crosswalk"), 250.0, 0.0, 0.0},
+      {1, forward, 30.0, 0.0, 0.0},
+      {2, stop, 60.0, 1.0, 0.0},
+      {3, bike, 90.0, -2.0, 0.0},
+      {4, rail, 120.0, 0.0, 0.0},
+      {5, ped, 150.0, 8.0, 0.0},
+      {6, stop, 200.0, 0.0, 0.0},
+      {8, bike, 300.0, 0.0, 0.0},
+      {9, stop, 15.0, 0.0, 0.0},
+      {10, stop, 390.0, 0.0, 0.0},
+      {11, forward, 350.0, 0.0, 0.0},
+      {12, label_of("crosswalk"), 250.0, 0.0, 0.0},
   };
   // The ECU's odometry frame: turned and moved against the truth's.
   const Pose2 drift{100.0, -40.0, 0.3};
@@ -387,8 +396,9 @@ TEST_CASE("malformed inputs are reported with file and line") {
   std::vector<DetectionRecord> detections;
   std::vector<WorldMarking> world;
 
-  fixture::write_text(dir / "v.csv", "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n1,0,stop,0,0,1,0,1,1,0,1\n"
-                                     "2,1,bogus,0,0,1,0,1,1,0,1\n");
+  fixture::write_text(dir / "v.csv",
+                      "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n1,0,stop,0,0,1,0,1,1,0,1\n"
+                      "2,1,bogus,0,0,1,0,1,1,0,1\n");
   CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
   CHECK(error == (dir / "v.csv").string() + ":3: class 'bogus' is not a marking class");
 
@@ -400,18 +410,21 @@ TEST_CASE("malformed inputs are reported with file and line") {
   CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
   CHECK_THAT(error, StartsWith((dir / "v.csv").string() + ":2: expected 11 comma-separated fields"));
 
-  fixture::write_text(dir / "d.csv", "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
-                                     "1,stop,0.5,0,0,1,0,1,1,0,1,2,3\n1,stop,1.5,0,0,1,0,1,1,0,1,2,3\n");
+  fixture::write_text(dir / "d.csv",
+                      "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
+                      "1,stop,0.5,0,0,1,0,1,1,0,1,2,3\n1,stop,1.5,0,0,1,0,1,1,0,1,2,3\n");
   CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
   CHECK(error == (dir / "d.csv").string() + ":3: score 1.5 is outside [0, 1]");
 
-  fixture::write_text(dir / "d.csv", "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
-                                     "1.5,stop,0.5,0,0,1,0,1,1,0,1,2,3\n");
+  fixture::write_text(dir / "d.csv",
+                      "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
+                      "1.5,stop,0.5,0,0,1,0,1,1,0,1,2,3\n");
   CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
   CHECK_THAT(error, StartsWith((dir / "d.csv").string() + ":2: frame is not a whole number"));
 
-  fixture::write_text(dir / "d.csv", "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
-                                     "1,stop,0.5,0,0,1,0,1,1,0,nan,2,3\n");
+  fixture::write_text(dir / "d.csv",
+                      "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
+                      "1,stop,0.5,0,0,1,0,1,1,0,nan,2,3\n");
   CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
   CHECK(error == (dir / "d.csv").string() + ":2: y4 is not a finite number: 'nan'");
 
@@ -424,8 +437,9 @@ TEST_CASE("malformed inputs are reported with file and line") {
   CHECK_FALSE(load_world_markings(dir, world, error));
   CHECK(error == dir.string() + ": is a directory, not a CSV file");
 
-  fixture::write_text(dir / "c.log", "(0000000001.000000) vcan0 2A0#0011223344556677\n"
-                                     "(0000000001.000100) vcan0 2A0#00112233445566ZZ\n");
+  fixture::write_text(dir / "c.log",
+                      "(0000000001.000000) vcan0 2A0#0011223344556677\n"
+                      "(0000000001.000100) vcan0 2A0#00112233445566ZZ\n");
   EcuCanLog log;
   CHECK_FALSE(read_ecu_can_log(dir / "c.log", log, error));
   CHECK_THAT(error, StartsWith((dir / "c.log").string() + ":2:"));
@@ -441,45 +455,54 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
   // Stamps on the wall clock: refused at the first line, with the drive's span.
   fixture::write_text(path, "(1733130000.100000) vcan0 2B0#0011223344556677\n");
   CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
-  CHECK_THAT(error, StartsWith(path + ":1: stamp 1733130000.100000 s lies outside the drive (0.000 to 79.900 s"));
+  CHECK_THAT(error,
+             StartsWith(path + ":1: stamp 1733130000.100000 s lies outside the drive (0.000 to 79.900 s"));
   // ... but read without a drive to hold them against.
   CHECK(read_ecu_can_log(path, log, error));
   // Within the allowance either side of the drive.
-  fixture::write_text(path, "(0000000000.000000) vcan0 2B0#0011223344556677\n"
-                            "(0000000139.900000) vcan0 2B0#0011223344556677\n");
+  fixture::write_text(path,
+                      "(0000000000.000000) vcan0 2B0#0011223344556677\n"
+                      "(0000000139.900000) vcan0 2B0#0011223344556677\n");
   CHECK(read_ecu_can_log(path, log, error, &drive));
-  fixture::write_text(path, "(0000000000.000000) vcan0 2B0#0011223344556677\n"
-                            "(0000000140.000000) vcan0 2B0#0011223344556677\n");
+  fixture::write_text(path,
+                      "(0000000000.000000) vcan0 2B0#0011223344556677\n"
+                      "(0000000140.000000) vcan0 2B0#0011223344556677\n");
   CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
   CHECK_THAT(error, StartsWith(path + ":2: stamp 140.000000 s lies outside the drive"));
 
   // Going back in time.
-  fixture::write_text(path, "(0000000002.000000) vcan0 2B0#0011223344556677\n"
-                            "(0000000002.000000) vcan0 2B0#0011223344556677\n"
-                            "(0000000001.999999) vcan0 2B0#0011223344556677\n");
+  fixture::write_text(path,
+                      "(0000000002.000000) vcan0 2B0#0011223344556677\n"
+                      "(0000000002.000000) vcan0 2B0#0011223344556677\n"
+                      "(0000000001.999999) vcan0 2B0#0011223344556677\n");
   CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
   CHECK_THAT(error, StartsWith(path + ":3: stamp 1.999999 s is before the line above's 2.000000 s"));
 
   // A last line cut short (no newline, too few bytes on an ECU id) is an
   // error; the same frame on a whole line is a frame of the wrong length.
-  fixture::write_text(path, "(0000000001.000000) vcan0 120#0011223344556677\n"
-                            "(0000000001.000000) vcan0 2A0#0011223344");
+  fixture::write_text(path,
+                      "(0000000001.000000) vcan0 120#0011223344556677\n"
+                      "(0000000001.000000) vcan0 2A0#0011223344");
   CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
-  CHECK(error == path + ":2: the last line is cut short: no newline at its end, and its frame has 5 bytes "
-                        "where the ECU sends 8 (was the log cut?)");
-  fixture::write_text(path, "(0000000001.000000) vcan0 120#0011223344556677\n"
-                            "(0000000001.000000) vcan0 2A0#0011223344\n");
+  CHECK(error == path +
+                     ":2: the last line is cut short: no newline at its end, and its frame has 5 bytes "
+                     "where the ECU sends 8 (was the log cut?)");
+  fixture::write_text(path,
+                      "(0000000001.000000) vcan0 120#0011223344556677\n"
+                      "(0000000001.000000) vcan0 2A0#0011223344\n");
   REQUIRE(read_ecu_can_log(path, log, error, &drive));
   CHECK(log.loop_frames.wrong_length == 1);
   CHECK(can_log_warnings(path, log) ==
-        std::vector<std::string>{path + ":2: 1 of 1 LoopDetection and Status frames have the wrong length (this one "
-                                        "5 bytes, the DBC's 8): rejected, counted under 'length'"});
+        std::vector<std::string>{path +
+                                 ":2: 1 of 1 LoopDetection and Status frames have the wrong length (this one "
+                                 "5 bytes, the DBC's 8): rejected, counted under 'length'"});
   // Another id's frame without a newline is no ECU frame to judge.
   fixture::write_text(path, "(0000000001.000000) vcan0 120#0011");
   REQUIRE(read_ecu_can_log(path, log, error, &drive));
   CHECK(can_log_warnings(path, log) ==
-        std::vector<std::string>{path + ": no LoopDetection or Status frame: is this the ECU's log? (its one frame "
-                                        "is of another id)"});
+        std::vector<std::string>{path +
+                                 ": no LoopDetection or Status frame: is this the ECU's log? (its one frame "
+                                 "is of another id)"});
 
   // The fixture's own log: nothing to say.
   REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error, &drive));
@@ -514,7 +537,7 @@ TEST_CASE("the picture is written as SVG and PNG") {
   CHECK(svg.find("title &amp; &lt;figures&gt;") != std::string::npos);
   CHECK(svg.find("frame 553 - frame 150") != std::string::npos);
   CHECK(svg.find("stroke=\"#dc1e1e\"") != std::string::npos);  // the wrong loop, red
-  CHECK(svg.find(">crosswalk<") != std::string::npos);        // legend
+  CHECK(svg.find(">crosswalk<") != std::string::npos);         // legend
   CHECK(svg.ends_with("</svg>\n"));
 
   CHECK_FALSE(write_png((dir / "no-such-dir" / "x.png").string(), content, error));

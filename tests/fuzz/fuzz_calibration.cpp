@@ -9,9 +9,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "tests/fuzz/fuzz_input.hpp"
 #include "app/perception/camera_model.hpp"
 #include "app/perception/marking_detector.hpp"
+#include "tests/fuzz/fuzz_input.hpp"
 
 using namespace markloop::perception;
 

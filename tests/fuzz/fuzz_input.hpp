@@ -18,9 +18,9 @@ class InputFile {
  public:
   // `suffix` matters where the reader goes by the name (".yaml" for OpenCV).
   InputFile(const std::uint8_t* data, std::size_t size, const char* suffix) {
-    path_ = (std::filesystem::temp_directory_path() /
-             ("markloop-fuzz-" + std::to_string(::getpid()) + suffix))
-                .string();
+    path_ =
+        (std::filesystem::temp_directory_path() / ("markloop-fuzz-" + std::to_string(::getpid()) + suffix))
+            .string();
     std::FILE* f = std::fopen(path_.c_str(), "wb");
     if (f == nullptr || (size > 0 && std::fwrite(data, 1, size, f) != size) || std::fclose(f) != 0) {
       std::perror(path_.c_str());

@@ -8,8 +8,8 @@
 
 #include <opencv2/core.hpp>
 
-#include "tests/fuzz/fuzz_input.hpp"
 #include "app/tools/common/still_image.hpp"
+#include "tests/fuzz/fuzz_input.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const cv::Size camera(64, 48);

@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "app/tools/eval/can_log.hpp"
-#include "tests/fuzz/fuzz_input.hpp"
 #include "app/tools/replay/paper_format.hpp"
+#include "tests/fuzz/fuzz_input.hpp"
 
 using namespace markloop;
 

@@ -4,8 +4,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "tests/fuzz/fuzz_input.hpp"
 #include "app/io/y4m.hpp"
+#include "tests/fuzz/fuzz_input.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const markloop::fuzz::InputFile file(data, size, ".y4m");

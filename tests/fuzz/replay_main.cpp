@@ -31,9 +31,10 @@ bool run_file(const std::filesystem::path& path) {
 
 int main(int argc, char** argv) {
   if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) {
-    std::printf("usage: %s FILE_OR_DIR...\n"
-                "Runs this fuzz target once on each file (directories: each file in them).\n",
-                argv[0]);
+    std::printf(
+        "usage: %s FILE_OR_DIR...\n"
+        "Runs this fuzz target once on each file (directories: each file in them).\n",
+        argv[0]);
     return argc < 2 ? 2 : 0;
   }
   std::size_t inputs = 0;

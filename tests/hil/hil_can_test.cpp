@@ -9,17 +9,17 @@
 #include <sys/socket.h>
 #include <time.h>
 
+#include <net/if.h>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
 #include <iostream>
-#include <net/if.h>
 #include <random>
 #include <thread>
 
-#include "tests/hil/hil_test_support.hpp"
 #include "dbc/markloop_messages.hpp"
+#include "tests/hil/hil_test_support.hpp"
 
 using namespace markloop;
 using namespace markloop::hil;
@@ -45,8 +45,8 @@ bool receive_within(SocketCan& can, CanFrame& out, std::chrono::milliseconds tim
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
     if (!can.receive(out)) return true;
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-        deadline - std::chrono::steady_clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) return false;
     (void)can.poll_readable(left);
   }
@@ -119,7 +119,8 @@ TEST_CASE("frames sent by the driver arrive intact at candump") {
   for (int i = 0; i < 300; ++i) {
     CanFrame f;
     f.extended = (i % 3) == 1;
-    f.id = static_cast<std::uint32_t>(f.extended ? (rng() & CanFrame::kMaxExtendedId) : (rng() % 0x7FE));  // 0x7FE: markers
+    f.id = static_cast<std::uint32_t>(f.extended ? (rng() & CanFrame::kMaxExtendedId)
+                                                 : (rng() % 0x7FE));  // 0x7FE: markers
     f.dlc = static_cast<std::uint8_t>(i % 9);
     for (std::uint8_t b = 0; b < f.dlc; ++b) f.data[b] = static_cast<std::uint8_t>(rng());
     REQUIRE_FALSE(can.send(f));
@@ -175,9 +176,9 @@ TEST_CASE("frames injected with cansend are filtered, received and decoded") {
   const CanFrame odo = from_dbc(dbc::encode_frame(sent, sender));
   const std::string i = can_if();
   const std::int64_t before = realtime_ns();
-  REQUIRE(run("cansend " + i + " 121#0102") == 0);       // id not in the filter
-  REQUIRE(run("cansend " + i + " 120#R") == 0);          // remote frame
-  REQUIRE(run("cansend " + i + " 00000120#01") == 0);    // extended 0x120: other format
+  REQUIRE(run("cansend " + i + " 121#0102") == 0);     // id not in the filter
+  REQUIRE(run("cansend " + i + " 120#R") == 0);        // remote frame
+  REQUIRE(run("cansend " + i + " 00000120#01") == 0);  // extended 0x120: other format
   REQUIRE(run("cansend " + i + " " + cansend_arg(odo)) == 0);
   REQUIRE(run("cansend " + i + " 18FF0001#CAFE") == 0);
   const std::int64_t after = realtime_ns();
@@ -254,14 +255,22 @@ TEST_CASE("corrupted CRC and alive counter are rejected and counted") {
     const dbc::DecodeError err = dbc::decode(in.payload(), e2e, out);
     results.push_back(err);
     switch (err) {
-      case dbc::DecodeError::None: ++accepted; break;
-      case dbc::DecodeError::BadCrc: ++bad_crc; break;
-      case dbc::DecodeError::BadCounter: ++bad_counter; break;
-      default: ++other; break;
+      case dbc::DecodeError::None:
+        ++accepted;
+        break;
+      case dbc::DecodeError::BadCrc:
+        ++bad_crc;
+        break;
+      case dbc::DecodeError::BadCounter:
+        ++bad_counter;
+        break;
+      default:
+        ++other;
+        break;
     }
   }
   using E = dbc::DecodeError;
-  const std::vector<E> expected = {E::None, E::None, E::BadCrc, E::BadCounter,
+  const std::vector<E> expected = {E::None, E::None,   E::BadCrc,     E::BadCounter,
                                    E::None, E::BadCrc, E::BadCounter, E::None};
   CHECK(results == expected);
   CHECK(accepted == 4);
@@ -301,9 +310,9 @@ TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms perio
     }
   });
 
-  Process cangen({"sh", "-c",
-                  "while :; do cangen " + can_if() + " -g 0 -I r -L r -D r -n 20000 || exit 1; done"},
-                 results_dir() + "/cangen.out");
+  Process cangen(
+      {"sh", "-c", "while :; do cangen " + can_if() + " -g 0 -I r -L r -D r -n 20000 || exit 1; done"},
+      results_dir() + "/cangen.out");
   REQUIRE(cangen.started());
   std::this_thread::sleep_for(200ms);  // the flood is running before the first cycle
 
@@ -341,8 +350,8 @@ TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms perio
   std::thread marker_thread([&] {
     std::uint16_t seq = 0;
     while (!stop.load()) {
-      const CanFrame f = make_frame(kMarkerId, true, {static_cast<std::uint8_t>(seq >> 8),
-                                                      static_cast<std::uint8_t>(seq & 0xFF)});
+      const CanFrame f = make_frame(
+          kMarkerId, true, {static_cast<std::uint8_t>(seq >> 8), static_cast<std::uint8_t>(seq & 0xFF)});
       if (!injector.send(f)) {
         ++seq;
         ++markers_sent;
@@ -379,8 +388,8 @@ TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms perio
   // Receive path: exactly the markers, all of them, in order.
   print_counters("flood rx", rx);
   print_counters("flood counter", flood_rx);
-  std::cout << "flood: frames seen by an unfiltered socket " << flood_seen.load()
-            << ", markers sent " << markers_sent.load() << ", received " << markers.size() << "\n";
+  std::cout << "flood: frames seen by an unfiltered socket " << flood_seen.load() << ", markers sent "
+            << markers_sent.load() << ", received " << markers.size() << "\n";
   CHECK(flood_seen.load() > 10000);  // the flood really happened
   CHECK(wrong_ids == 0);
   CHECK(markers.size() == static_cast<std::size_t>(markers_sent.load()));
@@ -412,8 +421,8 @@ TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms perio
   const std::int64_t drift = span - (kCycles - 1) * std::chrono::nanoseconds(kPeriod).count();
   const std::int64_t late_max = *std::max_element(lateness_ns.begin(), lateness_ns.end());
   std::cout << "status cycle under flood: worst period deviation " << worst / 1000 << " us, drift over "
-            << kCycles - 1 << " cycles " << drift / 1000 << " us, worst wake-up lateness "
-            << late_max / 1000 << " us\n";
+            << kCycles - 1 << " cycles " << drift / 1000 << " us, worst wake-up lateness " << late_max / 1000
+            << " us\n";
   // Bounds for a TCG-emulated guest sharing 2 host cores with the flood:
   // generous against scheduling noise (44 ms seen once with the host busy
   // beside the VM), half a cycle (a missed or doubled cycle would be
@@ -575,8 +584,8 @@ TEST_CASE("a full kernel queue (ENOBUFS) drops the oldest queued frames, never t
 
   constexpr int kFrames = 200;
   for (int k = 0; k < kFrames; ++k) {
-    const CanFrame f = make_frame(0x300, false, {static_cast<std::uint8_t>(k >> 8),
-                                                 static_cast<std::uint8_t>(k & 0xFF)});
+    const CanFrame f =
+        make_frame(0x300, false, {static_cast<std::uint8_t>(k >> 8), static_cast<std::uint8_t>(k & 0xFF)});
     REQUIRE_FALSE(dut.send(f));  // never an error, never blocks
     CHECK(dut.tx_pending() <= SocketCan::kTxQueueCapacity);
   }

@@ -16,9 +16,9 @@
 #include <thread>
 #include <vector>
 
+#include "dbc/receive.hpp"
 #include "drivers/can/candump_log.hpp"
 #include "drivers/can/socketcan.hpp"
-#include "dbc/receive.hpp"
 
 extern char** environ;
 

@@ -12,11 +12,11 @@
 #include <linux/videodev2.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <algorithm>
 #include <fstream>
 #include <iostream>
 #include <string>
@@ -40,7 +40,7 @@ using markloop::test::AllocationCounter;
 
 // vivid's private controls (drivers/media/test-drivers/vivid/vivid-ctrls.c),
 // as listed by `v4l2-ctl -L` on the VM kernel (Linux 6.1).
-constexpr std::uint32_t kOsdTextMode = 0x00f0f001;     // 2 = no text over the image
+constexpr std::uint32_t kOsdTextMode = 0x00f0f001;  // 2 = no text over the image
 constexpr std::uint32_t kLoopVideo = 0x00f0f025;
 constexpr std::uint32_t kPercentDropped = 0x00f0f040;  // buffers vivid drops
 constexpr std::uint32_t kInjectBufFlagError = 0x00f0f042;
@@ -70,17 +70,17 @@ std::string find_vivid_node(V4l2Device::Direction direction) {
 // Looked up once; the strings live as long as the program, so configs may
 // keep string_views of them.
 const std::string& capture_node() {
-  static const std::string node =
-      env_or("HIL_V4L2_CAPTURE", find_vivid_node(V4l2Device::Direction::Capture));
+  static const std::string node = env_or("HIL_V4L2_CAPTURE", find_vivid_node(V4l2Device::Direction::Capture));
   return node;
 }
 const std::string& output_node() {
-  static const std::string node =
-      env_or("HIL_V4L2_OUTPUT", find_vivid_node(V4l2Device::Direction::Output));
+  static const std::string node = env_or("HIL_V4L2_OUTPUT", find_vivid_node(V4l2Device::Direction::Output));
   return node;
 }
 
-double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
+double ms(std::int64_t ns) {
+  return static_cast<double>(ns) / 1e6;
+}
 
 // Sets a control through a separate handle (vivid's controls are per device
 // instance, so this works while the camera itself is closed or recovering).
@@ -125,10 +125,10 @@ void print_counters(const char* what, const V4l2Camera& cam) {
   const CameraCounters& k = cam.counters();
   std::cout << "[v4l2] " << what << ": state " << to_string(cam.state()) << ", frames " << k.frames
             << ", dropped " << k.dropped << ", buffer_errors " << k.buffer_errors << ", timeouts "
-            << k.timeouts << ", stalls " << k.stalls << ", io_errors " << k.io_errors
-            << ", device_lost " << k.device_lost << ", recoveries " << k.recoveries_started
-            << ", reopen attempts/failures/successes " << k.reopen_attempts << "/" << k.reopen_failures
-            << "/" << k.reopen_successes << ", last recovery " << ms(k.last_recovery_ns) << " ms\n";
+            << k.timeouts << ", stalls " << k.stalls << ", io_errors " << k.io_errors << ", device_lost "
+            << k.device_lost << ", recoveries " << k.recoveries_started
+            << ", reopen attempts/failures/successes " << k.reopen_attempts << "/" << k.reopen_failures << "/"
+            << k.reopen_successes << ", last recovery " << ms(k.last_recovery_ns) << " ms\n";
 }
 
 // Waits for frames until one arrives or `timeout` passes; releases it.
@@ -290,10 +290,9 @@ TEST_CASE("streaming a few hundred frames: sequence and timestamps increase") {
   CHECK(cam.counters().dropped == gaps);
   CHECK(cam.counters().recoveries_started == 0);
   const double mean_interval_ms = ms(stamps.back() - stamps.front()) / (kFrames - 1);
-  std::cout << "[v4l2] streamed " << kFrames << " frames 640x480 GREY in " << seconds
-            << " s, sequence " << sequences.front() << ".." << sequences.back() << ", dropped "
-            << cam.counters().dropped << ", mean driver timestamp interval " << mean_interval_ms
-            << " ms\n";
+  std::cout << "[v4l2] streamed " << kFrames << " frames 640x480 GREY in " << seconds << " s, sequence "
+            << sequences.front() << ".." << sequences.back() << ", dropped " << cam.counters().dropped
+            << ", mean driver timestamp interval " << mean_interval_ms << " ms\n";
   // 25 fps asked: 40 ms per frame (driver timestamps), with slack for the VM.
   CHECK(mean_interval_ms > 30.0);
   CHECK(mean_interval_ms < 60.0);
@@ -447,8 +446,10 @@ TEST_CASE("output -> capture loop: a written pattern comes back") {
       for (std::uint32_t y = 0; y < 480; ++y)
         for (std::uint32_t x = 0; x < 640; ++x) luma[y * 640 + x] = pattern(sent, x, y);
       const std::error_code sec = out.send_luma(luma, 200ms);
-      if (!sec) ++sent;
-      else if (sec != std::errc::timed_out) FAIL("send_luma: " << sec.message());
+      if (!sec)
+        ++sent;
+      else if (sec != std::errc::timed_out)
+        FAIL("send_luma: " << sec.message());
       FrameView f;
       if (cam.wait_frame(f, 100ms)) continue;
       REQUIRE(extract_luma(f.format, {f.data, f.bytes_used}, f.width, f.height, f.stride, seen));

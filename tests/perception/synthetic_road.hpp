@@ -51,8 +51,8 @@ cv::Mat render_road_shaded(const CameraModel& camera, IsPaint is_paint, InShadow
         continue;
       }
       // Deterministic asphalt texture of +-6 grey levels.
-      const std::uint32_t h = (static_cast<std::uint32_t>(u) * 73856093u) ^
-                              (static_cast<std::uint32_t>(v) * 19349663u);
+      const std::uint32_t h =
+          (static_cast<std::uint32_t>(u) * 73856093u) ^ (static_cast<std::uint32_t>(v) * 19349663u);
       const int road = in_shadow(g) ? static_cast<int>(road_grey * shadow_factor) : road_grey;
       const int value = is_paint(g) ? paint_grey : road + static_cast<int>(h % 13u) - 6;
       row[u] = static_cast<std::uint8_t>(value);

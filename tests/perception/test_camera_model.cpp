@@ -174,17 +174,19 @@ TEST_CASE("Calibrations that would crash the parser or describe no usable camera
   CHECK(error.find("deep.xml:3: nested more than 32 levels deep") != std::string::npos);
 
   const std::string pinhole = header +
-      "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
-      "  data: [ 900., 0., 639.5, 0., 900., 255.5, 0., 0., 1. ]\n"
-      "mount_height: 1.5\n";
+                              "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+                              "  data: [ 900., 0., 639.5, 0., 900., 255.5, 0., 0., 1. ]\n"
+                              "mount_height: 1.5\n";
   const auto nan = scratch("nan_distortion.yaml");
-  write_file(nan, pinhole + "mount_pitch_deg: 12\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n"
-                            "  cols: 5\n  dt: d\n  data: [ .nan, 0., 0., 0., 0. ]\n");
+  write_file(nan, pinhole +
+                      "mount_pitch_deg: 12\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n"
+                      "  cols: 5\n  dt: d\n  data: [ .nan, 0., 0., 0., 0. ]\n");
   CHECK_FALSE(load_camera_model(nan.string(), error));
   CHECK(error.find("nan_distortion.yaml: distortion_coefficients must be finite") != std::string::npos);
   const auto inf = scratch("inf_distortion.yaml");
-  write_file(inf, pinhole + "mount_pitch_deg: 12\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n"
-                            "  cols: 4\n  dt: d\n  data: [ 0., -.inf, 0., 0. ]\n");
+  write_file(inf, pinhole +
+                      "mount_pitch_deg: 12\ndistortion_coefficients: !!opencv-matrix\n  rows: 1\n"
+                      "  cols: 4\n  dt: d\n  data: [ 0., -.inf, 0., 0. ]\n");
   CHECK_FALSE(load_camera_model(inf.string(), error));
   CHECK(error.find("inf_distortion.yaml: distortion_coefficients must be finite") != std::string::npos);
 
@@ -194,11 +196,13 @@ TEST_CASE("Calibrations that would crash the parser or describe no usable camera
   CHECK_FALSE(load_camera_model(sideways.string(), error));
   CHECK(error.find("sideways.yaml: the camera sees no road") != std::string::npos);
   const auto telescope = scratch("telescope.yaml");
-  write_file(telescope, header + "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
-                                 "  data: [ 1e308, 0., 639.5, 0., 900., 255.5, 0., 0., 1. ]\n"
-                                 "mount_height: 1.5\nmount_pitch_deg: 12\n");
+  write_file(telescope, header +
+                            "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+                            "  data: [ 1e308, 0., 639.5, 0., 900., 255.5, 0., 0., 1. ]\n"
+                            "mount_height: 1.5\nmount_pitch_deg: 12\n");
   CHECK_FALSE(load_camera_model(telescope.string(), error));
-  CHECK(error.find("telescope.yaml: camera_matrix needs focal lengths of 0 to 100000 pixels") != std::string::npos);
+  CHECK(error.find("telescope.yaml: camera_matrix needs focal lengths of 0 to 100000 pixels") !=
+        std::string::npos);
   const auto level = scratch("level.yaml");
   write_file(level, pinhole + "mount_pitch_deg: 12\n");
   CHECK(load_camera_model(level.string(), error));

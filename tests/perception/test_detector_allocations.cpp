@@ -42,9 +42,9 @@ TEST_CASE("detect() allocates nothing, frame after frame", "[perception][memory]
   std::vector<cv::Mat> frames;
   for (int k = 0; k < 12; ++k) {
     const double x = 18.0 - 1.2 * k;
-    std::vector<GroundRect> paint = {{x, x + 2.4, 0.5, 1.1},       {x, x + 2.4, -0.2, 0.3},
-                                     {x - 1, x + 2, -3.0, -2.0},   {3.0, 25.0, 1.7, 1.85},
-                                     {3.0, 25.0, -1.85, -1.7},     {x + 3, x + 3.4, -5, 5}};
+    std::vector<GroundRect> paint = {{x, x + 2.4, 0.5, 1.1},     {x, x + 2.4, -0.2, 0.3},
+                                     {x - 1, x + 2, -3.0, -2.0}, {3.0, 25.0, 1.7, 1.85},
+                                     {3.0, 25.0, -1.85, -1.7},   {x + 3, x + 3.4, -5, 5}};
     for (int s = 0; s < 30; ++s) {
       const double sx = 4.0 + 0.5 * s, sy = -5.0 + 0.33 * s;
       paint.push_back({sx, sx + 0.25, sy, sy + 0.2});
@@ -92,12 +92,11 @@ TEST_CASE("the horizon from the lane lines allocates nothing, when it moves the 
   for (const double pitch_deg : {-1.0, 1.0}) {
     CameraMounting mounting = calibrated.mounting();
     mounting.pitch_rad += pitch_deg * std::numbers::pi / 180.0;
-    const CameraModel actual = CameraModel::pinhole(calibrated.width(), calibrated.height(),
-                                                    calibrated.intrinsics(), mounting);
-    frames.push_back(render_road(actual, {{3.0, 40.0, 1.7, 1.85},
-                                          {3.0, 40.0, -1.85, -1.7},
-                                          {3.0, 40.0, 5.3, 5.45},
-                                          {8.8, 11.2, 0.6, 1.2}}));
+    const CameraModel actual =
+        CameraModel::pinhole(calibrated.width(), calibrated.height(), calibrated.intrinsics(), mounting);
+    frames.push_back(render_road(
+        actual,
+        {{3.0, 40.0, 1.7, 1.85}, {3.0, 40.0, -1.85, -1.7}, {3.0, 40.0, 5.3, 5.45}, {8.8, 11.2, 0.6, 1.2}}));
   }
   DetectorConfig config;
   config.horizon_from_lanes = true;

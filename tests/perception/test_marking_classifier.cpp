@@ -18,7 +18,8 @@ namespace {
 struct Tensor {
   int channels, rows, cols;
   std::vector<float> v;
-  Tensor(int ch, int r, int c) : channels(ch), rows(r), cols(c), v(static_cast<std::size_t>(ch * r * c), 0.0f) {}
+  Tensor(int ch, int r, int c)
+      : channels(ch), rows(r), cols(c), v(static_cast<std::size_t>(ch * r * c), 0.0f) {}
   float& at(int ch, int r, int c) { return v[static_cast<std::size_t>((ch * rows + r) * cols + c)]; }
   float get(int ch, int r, int c) const {
     if (r < 0 || r >= rows || c < 0 || c >= cols) return 0.0f;
@@ -26,7 +27,8 @@ struct Tensor {
   }
 };
 
-Tensor conv_relu(const Tensor& in, const std::vector<float>& w, const std::vector<float>& b, int out_channels) {
+Tensor conv_relu(const Tensor& in, const std::vector<float>& w, const std::vector<float>& b,
+                 int out_channels) {
   Tensor out(out_channels, in.rows, in.cols);
   for (int o = 0; o < out_channels; ++o)
     for (int r = 0; r < in.rows; ++r)
@@ -108,14 +110,15 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
       input.at(0, r, c) = patch.grey[static_cast<std::size_t>(r * kPatchCols + c)];
       input.at(1, r, c) = patch.paint[static_cast<std::size_t>(r * kPatchCols + c)];
     }
-  const Tensor layer3 = conv_relu(
-      max_pool(conv_relu(max_pool(conv_relu(input, conv1_w, conv1_b, kCnnChannels1)), conv2_w, conv2_b,
-                         kCnnChannels2)),
-      conv3_w, conv3_b, kCnnChannels3);
+  const Tensor layer3 =
+      conv_relu(max_pool(conv_relu(max_pool(conv_relu(input, conv1_w, conv1_b, kCnnChannels1)), conv2_w,
+                                   conv2_b, kCnnChannels2)),
+                conv3_w, conv3_b, kCnnChannels3);
   std::vector<double> head(layer3.v.begin(), layer3.v.end());
   for (int i = 0; i < kShapeFeatures; ++i)
     head.push_back((features[static_cast<std::size_t>(kFeatureCount - kShapeFeatures + i)] -
-                    shape_mean[static_cast<std::size_t>(i)]) * shape_inv_std[static_cast<std::size_t>(i)]);
+                    shape_mean[static_cast<std::size_t>(i)]) *
+                   shape_inv_std[static_cast<std::size_t>(i)]);
   REQUIRE(head.size() == static_cast<std::size_t>(kCnnHeadInputs));
   std::vector<double> hidden(kCnnHidden), logits(kClassifierOutputs);
   for (int j = 0; j < kCnnHidden; ++j) {
@@ -137,16 +140,19 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   // (their geometric mean, normalised).
   std::array<float, kClassifierOutputs> from_net, from_mlps, blended;
   CnnScratch scratch;
-  const int best = classify(builtin_marking_model(), &one, 1.0f, kAlwaysRun, features, patch, scratch, from_net);
+  const int best =
+      classify(builtin_marking_model(), &one, 1.0f, kAlwaysRun, features, patch, scratch, from_net);
   int expected_best = 0;
   for (int k = 0; k < kClassifierOutputs; ++k) {
     CHECK(from_net[static_cast<std::size_t>(k)] ==
           Catch::Approx(logits[static_cast<std::size_t>(k)] / total).margin(1e-5));
-    if (logits[static_cast<std::size_t>(k)] > logits[static_cast<std::size_t>(expected_best)]) expected_best = k;
+    if (logits[static_cast<std::size_t>(k)] > logits[static_cast<std::size_t>(expected_best)])
+      expected_best = k;
   }
   CHECK(best == expected_best);
   classify(builtin_marking_model(), features, from_mlps);
-  const int blended_best = classify(builtin_marking_model(), &one, 0.5f, kAlwaysRun, features, patch, scratch, blended);
+  const int blended_best =
+      classify(builtin_marking_model(), &one, 0.5f, kAlwaysRun, features, patch, scratch, blended);
   std::array<double, kClassifierOutputs> product;
   double product_total = 0.0;
   for (std::size_t k = 0; k < product.size(); ++k) {
@@ -162,16 +168,19 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   CHECK(blended == from_mlps);
   const CnnModel other_alone{1, {other}};
   classify(builtin_marking_model(), &other_alone, 1.0f, kAlwaysRun, features, patch, scratch, from_other);
-  const int ensemble_best = classify(builtin_marking_model(), &two, 0.5f, kAlwaysRun, features, patch, scratch, blended);
+  const int ensemble_best =
+      classify(builtin_marking_model(), &two, 0.5f, kAlwaysRun, features, patch, scratch, blended);
   product_total = 0.0;
   for (std::size_t k = 0; k < product.size(); ++k) {
-    product[k] = std::sqrt(std::max(double{from_mlps[k]}, 1e-12)) *
-                 std::pow(std::max(double{from_net[k]}, 1e-12) * std::max(double{from_other[k]}, 1e-12), 0.25);
+    product[k] =
+        std::sqrt(std::max(double{from_mlps[k]}, 1e-12)) *
+        std::pow(std::max(double{from_net[k]}, 1e-12) * std::max(double{from_other[k]}, 1e-12), 0.25);
     product_total += product[k];
   }
   for (std::size_t k = 0; k < product.size(); ++k)
     CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
-  CHECK(ensemble_best == static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
+  CHECK(ensemble_best ==
+        static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
   // The networks skipped where the MLPs' reject reaches the bound: the MLPs' own.
   const float mlp_reject = from_mlps[static_cast<std::size_t>(kRejectClass)];
   classify(builtin_marking_model(), &two, 0.5f, mlp_reject, features, patch, scratch, blended);

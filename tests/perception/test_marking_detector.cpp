@@ -22,8 +22,8 @@ using markloop::perception::testing::garbage_frame;
 using markloop::perception::testing::GroundLine;
 using markloop::perception::testing::GroundRect;
 using markloop::perception::testing::render_road;
-using markloop::perception::testing::render_road_shaded;
 using markloop::perception::testing::render_road_lines;
+using markloop::perception::testing::render_road_shaded;
 using markloop::perception::testing::render_road_where;
 
 namespace {
@@ -51,8 +51,8 @@ struct SureModel {
   explicit SureModel(int label) {
     bias[label] = 20.0f;
     model.members = 1;
-    model.nets[0] = {kFeatureCount, 1, kClassifierOutputs, zeros.data(), ones.data(),
-                     zeros.data(), &zero, no_weights.data(), bias.data()};
+    model.nets[0] = {kFeatureCount, 1,     kClassifierOutputs, zeros.data(), ones.data(),
+                     zeros.data(),  &zero, no_weights.data(),  bias.data()};
   }
   SureModel(const SureModel&) = delete;
   SureModel& operator=(const SureModel&) = delete;
@@ -83,7 +83,8 @@ TEST_CASE("bird's-eye view: pixels map back to the ground points they show") {
     for (int c = 0; c < view.cols(); c += 13) {
       if (view.valid().at<std::uint8_t>(r, c) == 0) continue;
       Eigen::Vector2d pixel;
-      REQUIRE(camera.ground_to_image({view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel));
+      REQUIRE(camera.ground_to_image(
+          {view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel));
       CHECK(std::abs(out.at<std::uint8_t>(r, c) - pixel.x() / 5.0) <= 1.01);
       ++checked;
     }
@@ -106,7 +107,8 @@ TEST_CASE("bird's-eye view: nothing is read from below the bonnet's outline") {
     for (int c = 0; c < view.cols(); ++c) {
       if (open_view.valid().at<std::uint8_t>(r, c) == 0) continue;
       Eigen::Vector2d pixel;
-      REQUIRE(camera.ground_to_image({view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel));
+      REQUIRE(camera.ground_to_image(
+          {view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel));
       const bool below = pixel.y() >= bonnet.row_at(static_cast<float>(pixel.x()));
       const bool clear = pixel.y() + 2.0 < bonnet.row_at(static_cast<float>(pixel.x()) + 1.0f);
       if (below) CHECK(view.valid().at<std::uint8_t>(r, c) == 0);
@@ -140,7 +142,8 @@ TEST_CASE("bird's-eye view: a row shift reads the image lower; the bonnet moves 
     for (int r = 0; r < view.rows(); ++r)
       for (int c = 0; c < view.cols(); ++c) {
         Eigen::Vector2d pixel;
-        if (!camera.ground_to_image({view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel))
+        if (!camera.ground_to_image(
+                {view.ground_x(static_cast<float>(r)), view.ground_y(static_cast<float>(c))}, pixel))
           continue;
         const double read_row = pixel.y() + kShift;
         if (view.valid().at<std::uint8_t>(r, c) == 0) {
@@ -193,8 +196,8 @@ TEST_CASE("detector: digits side by side are grouped, separate markings are not"
   const CameraModel camera = default_camera_model();
   MarkingDetector detector(camera);
   // Two 'digits' 0.3 m apart (one marking) and a block 3 m to the right.
-  const cv::Mat frame = render_road(camera, {{9.0, 11.4, 0.9, 1.4}, {9.0, 11.4, 0.3, 0.6},
-                                             {9.0, 11.4, -2.9, -2.3}});
+  const cv::Mat frame =
+      render_road(camera, {{9.0, 11.4, 0.9, 1.4}, {9.0, 11.4, 0.3, 0.6}, {9.0, 11.4, -2.9, -2.3}});
   detector.detect(frame);
   Detection where{};
   const Candidate* pair = nearest(detector, 10.2, 0.85, where);
@@ -402,7 +405,8 @@ TEST_CASE("detector: candidates across a stroke join only when classified alike"
   for (const int pieces : {1, 2, 3}) {
     std::vector<Candidate> broken = {candidate(10, 30, xing, 0.8f, false, false)};
     for (int k = 0; k < pieces; ++k)
-      broken.push_back(candidate(40 + 10 * k, 45 + 10 * k, k == 0 ? rail : kRejectClass, 0.95f, false, false));
+      broken.push_back(
+          candidate(40 + 10 * k, 45 + 10 * k, k == 0 ? rail : kRejectClass, 0.95f, false, false));
     broken.push_back(candidate(80, 100, xing, 0.7f, false, false));
     for (std::size_t k = 0; k + 1 < broken.size(); ++k) broken[k].across_stroke = static_cast<int>(k + 1);
     std::array<std::int32_t, 5> by{};
@@ -456,7 +460,8 @@ TEST_CASE("detector: a word's letters a little further apart than the grouping g
   };
   const int gap = 15, max_cols = 80;  // 0.6 m and 3.2 m at 0.04 m a column
   SECTION("XIN and G; a third letter through the second") {
-    const std::vector<Candidate> word = {candidate(160, 170, 101, xing, false), candidate(100, 130, 100, xing, false),
+    const std::vector<Candidate> word = {candidate(160, 170, 101, xing, false),
+                                         candidate(100, 130, 100, xing, false),
                                          candidate(140, 150, 102, xing, false)};
     std::array<std::int32_t, 3> by{0, 1, 2};
     CHECK(join_split_words(word, by, gap, max_cols, 0.85f) == 2);
@@ -466,19 +471,24 @@ TEST_CASE("detector: a word's letters a little further apart than the grouping g
     CHECK(whole.col1 == 170);
   }
   SECTION("not: too wide together, another class, no word, cut, along the road, too far") {
-    const std::vector<Candidate> apart = {
-        candidate(100, 160, 100, stop, false), candidate(170, 230, 100, stop, false),       // the next lane's STOP
-        candidate(240, 260, 100, xing, false),                                              // another word
-        candidate(300, 320, 100, forward, false), candidate(330, 350, 100, forward, false),  // arrows
-        candidate(400, 420, 100, xing, false), candidate(430, 450, 100, xing, true),         // the second cut
-        candidate(500, 520, 100, xing, false), candidate(530, 550, 130, xing, false),        // half along
-        candidate(600, 620, 100, xing, false), candidate(640, 660, 100, xing, false)};       // 19 apart
+    const std::vector<Candidate> apart = {candidate(100, 160, 100, stop, false),
+                                          candidate(170, 230, 100, stop, false),  // the next lane's STOP
+                                          candidate(240, 260, 100, xing, false),  // another word
+                                          candidate(300, 320, 100, forward, false),
+                                          candidate(330, 350, 100, forward, false),  // arrows
+                                          candidate(400, 420, 100, xing, false),
+                                          candidate(430, 450, 100, xing, true),  // the second cut
+                                          candidate(500, 520, 100, xing, false),
+                                          candidate(530, 550, 130, xing, false),  // half along
+                                          candidate(600, 620, 100, xing, false),
+                                          candidate(640, 660, 100, xing, false)};  // 19 apart
     std::array<std::int32_t, 11> by{};
     for (std::size_t i = 0; i < by.size(); ++i) by[i] = static_cast<std::int32_t>(i);
     CHECK(join_split_words(apart, by, gap, max_cols, 0.85f) == 0);
   }
   SECTION("not: a candidate already in a word across its I") {
-    const std::vector<Candidate> words = {candidate(100, 130, 100, xing, false), candidate(140, 170, 100, xing, false),
+    const std::vector<Candidate> words = {candidate(100, 130, 100, xing, false),
+                                          candidate(140, 170, 100, xing, false),
                                           candidate(180, 190, 100, xing, false)};
     std::array<std::int32_t, 3> by{0, 0, 2};  // the first two joined across a stroke
     CHECK(join_split_words(words, by, gap, max_cols, 0.85f) == 0);
@@ -596,16 +606,16 @@ TEST_CASE("detector: a piece inside a larger marking is no detection of its own"
   const int rail = static_cast<int>(*marking_class_from_name("rail"));
   const int xing = static_cast<int>(*marking_class_from_name("xing"));
   const std::vector<Candidate> candidates = {
-      box(100, 10, 190, 90, rail),                 // 0: an X
-      box(110, 40, 125, 60, rail),                 // 1: an R inside it
-      box(170, 40, 195, 60, rail),                 // 2: 21 of its 26 columns inside it
-      box(120, 20, 140, 30, xing),                 // 3: inside, another class
-      box(100, 10, 190, 90, rail),                 // 4: the same box again (not larger)
-      box(300, 200, 390, 300, kRejectClass, true), // 5: an X cut by the view's edge, rejected
-      box(310, 240, 325, 260, rail),               // 6: its R
-      box(300, 100, 390, 190, kRejectClass),       // 7: something rejected, whole
-      box(310, 140, 325, 160, rail),               // 8: a marking inside its box
-      box(180, 40, 205, 60, rail),                 // 9: 11 of its 26 columns inside the X
+      box(100, 10, 190, 90, rail),                  // 0: an X
+      box(110, 40, 125, 60, rail),                  // 1: an R inside it
+      box(170, 40, 195, 60, rail),                  // 2: 21 of its 26 columns inside it
+      box(120, 20, 140, 30, xing),                  // 3: inside, another class
+      box(100, 10, 190, 90, rail),                  // 4: the same box again (not larger)
+      box(300, 200, 390, 300, kRejectClass, true),  // 5: an X cut by the view's edge, rejected
+      box(310, 240, 325, 260, rail),                // 6: its R
+      box(300, 100, 390, 190, kRejectClass),        // 7: something rejected, whole
+      box(310, 140, 325, 160, rail),                // 8: a marking inside its box
+      box(180, 40, 205, 60, rail),                  // 9: 11 of its 26 columns inside the X
   };
   CHECK_FALSE(is_piece_of_larger(candidates, 0));
   CHECK(is_piece_of_larger(candidates, 1));
@@ -629,10 +639,10 @@ TEST_CASE("detector: a still reports a marking cut by the near edge, marked part
   const double near = config.region.x_near_m, far = config.region.x_far_m;
   const double left = config.region.y_left_m;
   const std::vector<GroundRect> blocks = {
-      {near - 1.0, near + 1.4, 0.3, 0.9},     // across the near edge
-      {far - 1.2, far + 1.2, -0.9, -0.3},     // across the far edge
-      {14.0, 16.4, left - 0.5, left + 0.5},   // across the left edge
-      {9.0, 11.4, -2.9, -2.3},                // whole
+      {near - 1.0, near + 1.4, 0.3, 0.9},    // across the near edge
+      {far - 1.2, far + 1.2, -0.9, -0.3},    // across the far edge
+      {14.0, 16.4, left - 0.5, left + 0.5},  // across the left edge
+      {9.0, 11.4, -2.9, -2.3},               // whole
   };
   const cv::Mat frame = render_road(camera, blocks);
   const auto reported = [&](std::span<const Detection> detections, const GroundRect& block) {
@@ -677,9 +687,9 @@ TEST_CASE("detector: the guard band shows a marking ending at the region's edge 
   config.cnn_share = 0.0f;  // the sure model alone
   const double far = config.region.x_far_m, left = config.region.y_left_m;
   const std::vector<GroundRect> blocks = {
-      {far - 2.42, far - 0.02, -0.9, -0.3},    // ends 2 cm inside the far end
-      {9.0, 11.4, left - 0.62, left - 0.02},   // ends 2 cm inside the left side
-      {13.0, 14.0, left + 0.06, left + 0.2},   // wholly beyond the left side
+      {far - 2.42, far - 0.02, -0.9, -0.3},   // ends 2 cm inside the far end
+      {9.0, 11.4, left - 0.62, left - 0.02},  // ends 2 cm inside the left side
+      {13.0, 14.0, left + 0.06, left + 0.2},  // wholly beyond the left side
   };
   const cv::Mat frame = render_road(camera, blocks);
   const auto reported = [](std::span<const Detection> detections, const GroundRect& block) {
@@ -738,8 +748,8 @@ TEST_CASE("detector: a lane dash coming into view does not make a marking look c
     // own axis.
     const GroundRect word{9.0, 10.2, left - 1.4, left - 0.6};
     const GroundLine dash{9.3, left - 0.45, 12.0, left + 2.25, 0.15};
-    frame = render_road_where(camera,
-                              [&](const Eigen::Vector2d& g) { return word.covers(g) || dash.covers(g); });
+    frame =
+        render_road_where(camera, [&](const Eigen::Vector2d& g) { return word.covers(g) || dash.covers(g); });
     word_x = 9.6;
     word_y = left - 1.0;
   }
@@ -792,8 +802,8 @@ TEST_CASE("detector: paint everywhere overflows the cap, is counted, and reports
     const std::size_t found = detector.detect(clutter_frame(camera, k)).size();
     CHECK(detector.candidates().size() <= kMaxCandidates);
     const DetectorCounters& after = detector.counters();
-    const bool overflowed = after.candidates_dropped + after.parts_dropped >
-                            before.candidates_dropped + before.parts_dropped;
+    const bool overflowed =
+        after.candidates_dropped + after.parts_dropped > before.candidates_dropped + before.parts_dropped;
     CHECK(detector.last_view() == (overflowed ? ViewKind::Cluttered : ViewKind::Road));
     if (overflowed) {
       CHECK(found == 0);
@@ -887,7 +897,9 @@ TEST_CASE("horizon: lane lines meeting at a point give its row; strays and paral
   const float vx = 420.0f, vy = 250.0f;
   std::vector<ImageSegment> lines;
   for (const float foot : {0.0f, 250.0f, 600.0f, 800.0f}) {
-    const auto at = [&](float t) { return std::array<float, 2>{foot + t * (vx - foot), 600.0f + t * (vy - 600.0f)}; };
+    const auto at = [&](float t) {
+      return std::array<float, 2>{foot + t * (vx - foot), 600.0f + t * (vy - 600.0f)};
+    };
     const auto a = at(0.2f), b = at(0.6f);
     lines.push_back({a[0], a[1], b[0], b[1]});
   }
@@ -916,8 +928,10 @@ TEST_CASE("detector: the horizon from the lane lines undoes a camera pitched oth
   const CameraModel actual =
       CameraModel::pinhole(calibrated.width(), calibrated.height(), calibrated.intrinsics(), mounting);
   // Four lane lines, dashes between, and a legend-sized block at 10 m.
-  std::vector<GroundRect> paint = {{3.0, 40.0, 1.7, 1.85},   {3.0, 40.0, -1.85, -1.7},
-                                   {3.0, 40.0, 5.3, 5.45},   {3.0, 40.0, -5.45, -5.3},
+  std::vector<GroundRect> paint = {{3.0, 40.0, 1.7, 1.85},
+                                   {3.0, 40.0, -1.85, -1.7},
+                                   {3.0, 40.0, 5.3, 5.45},
+                                   {3.0, 40.0, -5.45, -5.3},
                                    {8.8, 11.2, 0.6, 1.2}};
   for (double x = 4.0; x < 40.0; x += 9.0) paint.push_back({x, x + 3.0, -0.08, 0.08});
   const cv::Mat frame = render_road(actual, paint);

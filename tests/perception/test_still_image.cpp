@@ -56,7 +56,8 @@ TEST_CASE("Still image: whole PNG and JPEG files are complete and decode to grey
     const auto bytes = encoded(extension);
     CHECK(check_still(bytes) == StillCheck::kComplete);
     std::string error;
-    const cv::Mat grey = read_grey_still(written(std::string("whole") + extension, bytes), kPictureSize, error);
+    const cv::Mat grey =
+        read_grey_still(written(std::string("whole") + extension, bytes), kPictureSize, error);
     REQUIRE(error.empty());
     REQUIRE(grey.type() == CV_8UC1);
     CHECK(grey.size() == kPictureSize);
@@ -119,7 +120,8 @@ TEST_CASE("Still image: the size a header declares is read before decoding") {
   // another frame header (as an EXIF thumbnail's does): the segment is
   // skipped whole, so the image's own size is the one read.
   auto jpeg = encoded(".jpg");
-  const std::vector<std::uint8_t> app1 = {0xff, 0xe1, 0x00, 0x0b, 0xff, 0xc0, 0x00, 0x11, 0x08, 0x00, 0x10, 0x00, 0x20};
+  const std::vector<std::uint8_t> app1 = {0xff, 0xe1, 0x00, 0x0b, 0xff, 0xc0, 0x00,
+                                          0x11, 0x08, 0x00, 0x10, 0x00, 0x20};
   jpeg.insert(jpeg.begin() + 2, app1.begin(), app1.end());
   CHECK(declared_still_size(jpeg) == kPictureSize);
   std::string error;
@@ -146,7 +148,8 @@ TEST_CASE("Still image: a small file declaring a huge image is refused without d
   // JPEG: the frame header's height and width (after its precision byte).
   auto jpeg = encoded(".jpg");
   std::size_t frame = 2;
-  while (!(jpeg[frame] == 0xff && jpeg[frame + 1] == 0xc0)) frame += 2 + (jpeg[frame + 2] << 8 | jpeg[frame + 3]);
+  while (!(jpeg[frame] == 0xff && jpeg[frame + 1] == 0xc0))
+    frame += 2 + (jpeg[frame + 2] << 8 | jpeg[frame + 3]);
   jpeg[frame + 5] = 0xff;  // height 65535
   jpeg[frame + 6] = 0xff;
   CHECK(declared_still_size(jpeg) == cv::Size(64, 65535));

@@ -5,11 +5,11 @@
 // two runs with different N is the cost of the extra frames alone.
 //
 //   markloop-pipeline-frames --stage engine|perception --frames N
-#include <opencv2/core.hpp>
-#include <opencv2/imgproc.hpp>
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 

@@ -12,9 +12,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "drivers/can/candump_log.hpp"
 #include "app/io/y4m.hpp"
 #include "dbc/markloop_messages.hpp"
+#include "drivers/can/candump_log.hpp"
 #include "sim/recorder.hpp"
 #include "sim/render.hpp"
 
@@ -179,8 +179,8 @@ TEST_CASE("a drive is byte-identical for a seed and differs for another") {
   REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-b"), 9), summary, error));
   REQUIRE(record_drive(*other, camera(), short_drive(scratch("seed-c"), 10), summary, error));
   const auto root = std::filesystem::temp_directory_path() / "markloop-sim-tests";
-  for (const char* file : {"frames.y4m", "odometry.log", "frames.csv", "markings.csv",
-                           "visible.csv", "markings.txt", "poses.txt"}) {
+  for (const char* file : {"frames.y4m", "odometry.log", "frames.csv", "markings.csv", "visible.csv",
+                           "markings.txt", "poses.txt"}) {
     INFO(file);
     CHECK(bytes_of(root / "seed-a" / file) == bytes_of(root / "seed-b" / file));
   }

@@ -104,7 +104,8 @@ TEST_CASE("routes that imply no real drive are refused before a world is laid") 
 
   // A 90 km drive in steps of a metre, as a real dataset's, is a route.
   std::string drive;
-  for (int i = 0; i <= 90000; ++i) drive += kitti_line(i % 2000 < 1000 ? i % 1000 : 1000 - i % 1000, 0.1 * (i / 1000));
+  for (int i = 0; i <= 90000; ++i)
+    drive += kitti_line(i % 2000 < 1000 ? i % 1000 : 1000 - i % 1000, 0.1 * (i / 1000));
   const auto route = load_route(write("ninety.txt", drive), error);
   INFO(error);
   CHECK(route);

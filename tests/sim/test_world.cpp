@@ -33,8 +33,7 @@ Path circle_route(double laps) {
 // Appends the straight from (x0, y0) towards (x1, y1) in 0.5 m steps.
 void add_straight(Path& route, double x0, double y0, double x1, double y1) {
   const int steps = static_cast<int>(std::hypot(x1 - x0, y1 - y0) / 0.5);
-  for (int i = 0; i < steps; ++i)
-    route.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
+  for (int i = 0; i < steps; ++i) route.add_point(x0 + (x1 - x0) * i / steps, y0 + (y1 - y0) * i / steps);
 }
 
 // Rows 4 to 5 m apart with a marking in every lane (every class as likely
@@ -183,8 +182,8 @@ TEST_CASE("no line crosses a marking, on a corner or where another road runs") {
     };
     for (const Strip& strip : world.strips) {
       if (strip.kind == StripKind::kRoad || !crosses(strip)) continue;
-      FAIL_CHECK("marking " << m.id << " (" << marking_class_names()[m.label] << ") at " << m.x << ", "
-                            << m.y << " crossed by a line at " << strip.x << ", " << strip.y);
+      FAIL_CHECK("marking " << m.id << " (" << marking_class_names()[m.label] << ") at " << m.x << ", " << m.y
+                            << " crossed by a line at " << strip.x << ", " << strip.y);
     }
   }
   // The straights still marked, up to the corner and the slanting road.

@@ -27,8 +27,7 @@
 #include <cstdlib>
 #include <new>
 
-#if defined(MARKLOOP_COUNT_C_ALLOCATIONS) && MARKLOOP_COUNT_C_ALLOCATIONS && \
-    !defined(__SANITIZE_ADDRESS__)
+#if defined(MARKLOOP_COUNT_C_ALLOCATIONS) && MARKLOOP_COUNT_C_ALLOCATIONS && !defined(__SANITIZE_ADDRESS__)
 #define MARKLOOP_REPLACES_C_ALLOCATIONS 1
 #else
 #define MARKLOOP_REPLACES_C_ALLOCATIONS 0
@@ -93,7 +92,9 @@ void* realloc(void* p, std::size_t size) {
   markloop::test::detail::count_allocation();
   return __libc_realloc(p, size);
 }
-void free(void* p) { __libc_free(p); }
+void free(void* p) {
+  __libc_free(p);
+}
 int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
   markloop::test::detail::count_allocation();
   void* p = __libc_memalign(alignment, size);
@@ -118,8 +119,18 @@ void* operator new(std::size_t size) {
   if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
-void* operator new[](std::size_t size) { return operator new(size); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void* operator new[](std::size_t size) {
+  return operator new(size);
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p, std::size_t) noexcept {
+  std::free(p);
+}

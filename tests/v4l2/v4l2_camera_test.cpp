@@ -63,14 +63,20 @@ TEST_CASE("camera configuration is validated before the kernel is touched") {
   CHECK(bad([](CameraConfig& c) { c.device = long_path; }));
   CHECK(bad([](CameraConfig& c) { c.width = 0; }));
   CHECK(bad([](CameraConfig& c) { c.height = 20000; }));
-  CHECK(bad([](CameraConfig& c) { c.format = PixelFormat::Yuyv; c.width = 641; }));
+  CHECK(bad([](CameraConfig& c) {
+    c.format = PixelFormat::Yuyv;
+    c.width = 641;
+  }));
   CHECK(bad([](CameraConfig& c) { c.buffer_count = 0; }));
   CHECK(bad([](CameraConfig& c) { c.buffer_count = V4l2Device::kMaxBuffers + 1; }));
   CHECK(bad([](CameraConfig& c) { c.fps = 5000; }));
   CHECK(bad([](CameraConfig& c) { c.input = -2; }));
   CHECK(bad([](CameraConfig& c) { c.frame_timeout = 0ms; }));
   CHECK(bad([](CameraConfig& c) { c.backoff_min = 0ms; }));
-  CHECK(bad([](CameraConfig& c) { c.backoff_max = 1ms; c.backoff_min = 2ms; }));
+  CHECK(bad([](CameraConfig& c) {
+    c.backoff_max = 1ms;
+    c.backoff_min = 2ms;
+  }));
   CHECK(bad([](CameraConfig& c) { c.max_consecutive_errors = 0; }));
 
   V4l2Camera cam;

@@ -39,7 +39,8 @@ TEST_CASE("driver errors have their own category and messages") {
   CHECK(std::string(ec.category().name()) == "v4l2");
   CHECK(ec.message() == "driver granted fewer buffers than requested");
   CHECK(ec != std::errc::invalid_argument);
-  CHECK(std::error_code(V4l2Error::FormatRefused).message() != std::error_code(V4l2Error::SizeRefused).message());
+  CHECK(std::error_code(V4l2Error::FormatRefused).message() !=
+        std::error_code(V4l2Error::SizeRefused).message());
 }
 
 TEST_CASE("sequence gaps count missed frames") {
@@ -99,11 +100,11 @@ TEST_CASE("luma of a YUYV image is every other byte") {
 
 TEST_CASE("luma extraction refuses wrong sizes") {
   std::vector<std::uint8_t> image(16), out(4);
-  CHECK_FALSE(extract_luma(PixelFormat::Grey, image, 2, 2, 1, out));          // stride < width
-  CHECK_FALSE(extract_luma(PixelFormat::Yuyv, image, 2, 2, 3, out));          // stride < 2*width
+  CHECK_FALSE(extract_luma(PixelFormat::Grey, image, 2, 2, 1, out));                      // stride < width
+  CHECK_FALSE(extract_luma(PixelFormat::Yuyv, image, 2, 2, 3, out));                      // stride < 2*width
   CHECK_FALSE(extract_luma(PixelFormat::Grey, std::span(image).first(3), 2, 2, 2, out));  // short
   std::vector<std::uint8_t> small(3);
-  CHECK_FALSE(extract_luma(PixelFormat::Grey, image, 2, 2, 2, small));        // output size
+  CHECK_FALSE(extract_luma(PixelFormat::Grey, image, 2, 2, 2, small));                    // output size
   CHECK_FALSE(extract_luma(PixelFormat::Yuyv, image, 3, 1, 6, std::span(out).first(3)));  // odd YUYV width
   CHECK_FALSE(extract_luma(PixelFormat::Grey, image, 0, 2, 2, std::span(out).first(0)));
 }

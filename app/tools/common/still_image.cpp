@@ -28,7 +28,9 @@ std::uint32_t big_endian_u32(const std::uint8_t* p) {
   return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
 }
 
-std::uint32_t big_endian_u16(const std::uint8_t* p) { return (std::uint32_t{p[0]} << 8) | p[1]; }
+std::uint32_t big_endian_u16(const std::uint8_t* p) {
+  return (std::uint32_t{p[0]} << 8) | p[1];
+}
 
 bool is_png(std::span<const std::uint8_t> bytes) {
   return bytes.size() >= kPngSignature.size() &&
@@ -129,9 +131,12 @@ cv::Size declared_still_size(std::span<const std::uint8_t> bytes) {
 cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::string& error) {
   std::string file;
   if (const std::error_code ec = platform::read_file_bounded(path.c_str(), kMaxStillBytes, file)) {
-    if (ec == std::errc::is_a_directory) error = "is a directory, not an image";
-    else if (ec == std::errc::file_too_large) error = "larger than 256 MiB, the limit for an image";
-    else error = "cannot open: " + ec.message();
+    if (ec == std::errc::is_a_directory)
+      error = "is a directory, not an image";
+    else if (ec == std::errc::file_too_large)
+      error = "larger than 256 MiB, the limit for an image";
+    else
+      error = "cannot open: " + ec.message();
     return {};
   }
   const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(file.data()), file.size());

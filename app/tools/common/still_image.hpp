@@ -13,9 +13,9 @@ namespace markloop::io {
 
 enum class StillCheck : std::uint8_t {
   kComplete,
-  kUnknownFormat,    // neither PNG's nor JPEG's signature
-  kTruncatedPng,     // ends inside a chunk or before the IEND chunk
-  kTruncatedJpeg,    // no end-of-image marker after the last scan
+  kUnknownFormat,  // neither PNG's nor JPEG's signature
+  kTruncatedPng,   // ends inside a chunk or before the IEND chunk
+  kTruncatedJpeg,  // no end-of-image marker after the last scan
 };
 
 // Whether `bytes` hold a whole PNG or JPEG file, judged by its structure

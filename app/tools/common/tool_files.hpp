@@ -28,8 +28,8 @@ namespace markloop::tools {
 // `path` whole into `text` when it holds at most `max_bytes`; else false with
 // "PATH: why" in `error`. `what` names the kind of file for the messages on
 // a directory or a file over the limit ("a markings file").
-inline bool read_input(const std::string& path, std::size_t max_bytes, const char* what,
-                       std::string& text, std::string& error) {
+inline bool read_input(const std::string& path, std::size_t max_bytes, const char* what, std::string& text,
+                       std::string& error) {
   const std::error_code ec = platform::read_file_bounded(path.c_str(), max_bytes, text);
   if (ec) error = platform::describe_read_error(path, ec, max_bytes, what);
   return !ec;
@@ -127,7 +127,8 @@ class OutputFile {
 
 // `size` bytes at `data` as the whole of the file `path` (an image encoded
 // in memory); false with "PATH: cannot write: why".
-inline bool write_whole_file(const std::string& path, const void* data, std::size_t size, std::string& error) {
+inline bool write_whole_file(const std::string& path, const void* data, std::size_t size,
+                             std::string& error) {
   OutputFile file;
   if (!file.open(path, error)) return false;
   std::fwrite(data, 1, size, file.get());

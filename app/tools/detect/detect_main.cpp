@@ -16,12 +16,12 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/common/cli.hpp"
-#include "app/tools/common/tool_files.hpp"
-#include "app/tools/common/still_image.hpp"
 #include "app/perception/camera_model.hpp"
 #include "app/perception/marking_classes.hpp"
 #include "app/perception/marking_classifier.hpp"
 #include "app/perception/marking_detector.hpp"
+#include "app/tools/common/still_image.hpp"
+#include "app/tools/common/tool_files.hpp"
 
 namespace {
 
@@ -128,8 +128,7 @@ bool write_view(const markloop::perception::MarkingDetector& detector,
 
 // Why a path named as an image cannot be read as one, or nothing (a file, a
 // pipe: read_grey_still reads either, up to its limit).
-std::string not_a_file_reason(const std::filesystem::file_status& status,
-                              const std::error_code& error) {
+std::string not_a_file_reason(const std::filesystem::file_status& status, const std::error_code& error) {
   if (std::filesystem::is_directory(status)) return "is a directory, not an image";
   if (std::filesystem::exists(status)) return {};
   if (error && error != std::errc::no_such_file_or_directory) return error.message();  // no access
@@ -197,7 +196,8 @@ int main(int argc, char** argv) {
   const std::filesystem::file_status camera_status = std::filesystem::status(camera_path, ec);
   if (std::filesystem::is_directory(camera_status))
     markloop::cli::fail(camera_path + ": is a directory, not a calibration file");
-  if (!std::filesystem::exists(camera_status)) markloop::cli::fail(camera_path + ": no such calibration file");
+  if (!std::filesystem::exists(camera_status))
+    markloop::cli::fail(camera_path + ": no such calibration file");
   // The calibration is opened twice (camera, then detector keys): a pipe
   // would be empty the second time.
   if (!std::filesystem::is_regular_file(camera_status))
@@ -227,8 +227,7 @@ int main(int argc, char** argv) {
       ++bad_images;
       continue;
     }
-    const cv::Mat grey =
-        markloop::io::read_grey_still(path, {camera->width(), camera->height()}, error);
+    const cv::Mat grey = markloop::io::read_grey_still(path, {camera->width(), camera->height()}, error);
     if (grey.empty()) {
       // A size that is not the camera's may be the calibration's fault: name it.
       if (error.starts_with("image is ")) error += " (" + camera_path + ")";

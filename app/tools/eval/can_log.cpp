@@ -4,20 +4,32 @@
 #include <string_view>
 
 #include "app/tools/common/tool_files.hpp"
-#include "drivers/can/candump_log.hpp"
 #include "app/tools/eval/inputs.hpp"
 #include "dbc/loop_detection_assembler.hpp"
+#include "drivers/can/candump_log.hpp"
 
 namespace markloop::eval {
 
 void RejectCounts::count(dbc::DecodeError error) {
   switch (error) {
-    case dbc::DecodeError::None: ++accepted; break;
-    case dbc::DecodeError::WrongLength: ++wrong_length; break;
-    case dbc::DecodeError::BadCrc: ++bad_crc; break;
-    case dbc::DecodeError::BadCounter: ++bad_counter; break;
-    case dbc::DecodeError::OutOfRange: ++out_of_range; break;
-    case dbc::DecodeError::UnknownPage: ++unknown_page; break;
+    case dbc::DecodeError::None:
+      ++accepted;
+      break;
+    case dbc::DecodeError::WrongLength:
+      ++wrong_length;
+      break;
+    case dbc::DecodeError::BadCrc:
+      ++bad_crc;
+      break;
+    case dbc::DecodeError::BadCounter:
+      ++bad_counter;
+      break;
+    case dbc::DecodeError::OutOfRange:
+      ++out_of_range;
+      break;
+    case dbc::DecodeError::UnknownPage:
+      ++unknown_page;
+      break;
   }
 }
 
@@ -45,8 +57,8 @@ bool parse_line(const std::string& path, std::size_t number, std::string_view li
 std::string stamp_text(std::int64_t ns) {
   char text[48];
   const std::int64_t us = ns / 1000;
-  std::snprintf(text, sizeof text, "%s%lld.%06lld", us < 0 ? "-" : "", (long long)((us < 0 ? -us : us) / 1000000),
-                (long long)((us < 0 ? -us : us) % 1000000));
+  std::snprintf(text, sizeof text, "%s%lld.%06lld", us < 0 ? "-" : "",
+                (long long)((us < 0 ? -us : us) / 1000000), (long long)((us < 0 ? -us : us) % 1000000));
   return text;
 }
 
@@ -57,7 +69,9 @@ void note_wrong_length(EcuCanLog& out, std::size_t line, std::size_t bytes, std:
   out.first_wrong_length_want = want;
 }
 
-std::string where(const std::string& path, std::size_t line) { return path + ":" + std::to_string(line) + ": "; }
+std::string where(const std::string& path, std::size_t line) {
+  return path + ":" + std::to_string(line) + ": ";
+}
 
 }  // namespace
 
@@ -94,13 +108,15 @@ bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& erro
     previous_ns = frame.timestamp_ns;
     if (drive != nullptr) {
       const double stamp_s = static_cast<double>(frame.timestamp_ns) * 1e-9;
-      if (!(stamp_s >= drive->first_s - kStampsBeforeDrive_s && stamp_s <= drive->last_s + kStampsAfterDrive_s)) {
+      if (!(stamp_s >= drive->first_s - kStampsBeforeDrive_s &&
+            stamp_s <= drive->last_s + kStampsAfterDrive_s)) {
         char span[160];
         std::snprintf(span, sizeof span, "(%.3f to %.3f s by frames.csv; %g s before and %g s after allowed)",
                       drive->first_s, drive->last_s, kStampsBeforeDrive_s, kStampsAfterDrive_s);
         error = where(path, lines.number()) + "stamp " + stamp_text(frame.timestamp_ns) +
                 " s lies outside the drive " + span +
-                ": the ECU stamps its log on the drive's clock; is this log on the wall clock, or of another drive?";
+                ": the ECU stamps its log on the drive's clock; is this log on the wall clock, or of another "
+                "drive?";
         return false;
       }
     }
@@ -139,7 +155,8 @@ bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& erro
     StatusSummary& s = out.status;
     s.last = status_page;
     s.page_seen[static_cast<std::size_t>(status_page.status_page)] = true;
-    if (status_page.status_page == dbc::StatusPage::Timing && status_page.loop_time_max_ms > s.loop_time_max_ms)
+    if (status_page.status_page == dbc::StatusPage::Timing &&
+        status_page.loop_time_max_ms > s.loop_time_max_ms)
       s.loop_time_max_ms = status_page.loop_time_max_ms;
     ++s.frames_in_state[static_cast<std::size_t>(status_page.system_state)];
     s.camera_lost += status_page.fault_camera_lost ? 1 : 0;
@@ -154,8 +171,10 @@ bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& erro
   // frame is short of its length, is a log cut mid-line (a full disk, a
   // copy stopped half-way), not a frame the ECU sent.
   if (last_frame_too_short && !text.empty() && text.back() != '\n') {
-    error = where(path, lines.number()) + "the last line is cut short: no newline at its end, and its frame has " +
-            std::to_string(last_frame_bytes) + " bytes where the ECU sends " + std::to_string(last_frame_want) + " (was the log cut?)";
+    error = where(path, lines.number()) +
+            "the last line is cut short: no newline at its end, and its frame has " +
+            std::to_string(last_frame_bytes) + " bytes where the ECU sends " +
+            std::to_string(last_frame_want) + " (was the log cut?)";
     return false;
   }
   progress.finish();
@@ -165,12 +184,13 @@ bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& erro
 
 std::vector<std::string> can_log_warnings(const std::string& path, const EcuCanLog& log) {
   std::vector<std::string> warnings;
-  const std::uint64_t ecu_frames =
-      log.loop_frames.accepted + log.loop_frames.rejected() + log.status_frames.accepted + log.status_frames.rejected();
+  const std::uint64_t ecu_frames = log.loop_frames.accepted + log.loop_frames.rejected() +
+                                   log.status_frames.accepted + log.status_frames.rejected();
   if (ecu_frames == 0) {
     const std::string held = log.frames == 0 ? "it holds no frame"
-                             : log.frames == 1 ? "its one frame is of another id"
-                                               : "its " + std::to_string(log.frames) + " frames are of other ids";
+                             : log.frames == 1
+                                 ? "its one frame is of another id"
+                                 : "its " + std::to_string(log.frames) + " frames are of other ids";
     warnings.push_back(path + ": no LoopDetection or Status frame: is this the ECU's log? (" + held + ")");
     return warnings;
   }
@@ -179,8 +199,8 @@ std::vector<std::string> can_log_warnings(const std::string& path, const EcuCanL
     warnings.push_back(where(path, log.first_wrong_length_line) + std::to_string(wrong) + " of " +
                        std::to_string(ecu_frames) +
                        " LoopDetection and Status frames have the wrong length (this one " +
-                       std::to_string(log.first_wrong_length_bytes) +
-                       " bytes, the DBC's " + std::to_string(log.first_wrong_length_want) + "): rejected, counted under 'length'");
+                       std::to_string(log.first_wrong_length_bytes) + " bytes, the DBC's " +
+                       std::to_string(log.first_wrong_length_want) + "): rejected, counted under 'length'");
   return warnings;
 }
 

@@ -36,7 +36,7 @@ struct RejectCounts {
 struct StatusSummary {
   dbc::Status last{};  // the latest value of every page's signals
   std::array<bool, dbc::Status::kPages.size()> page_seen{};
-  double loop_time_max_ms = 0.0;  // largest LoopTimeMax of any Status frame
+  double loop_time_max_ms = 0.0;                   // largest LoopTimeMax of any Status frame
   std::array<std::uint64_t, 4> frames_in_state{};  // by SystemState
   // Status frames with each fault flag set.
   std::uint64_t camera_lost = 0, camera_blind = 0, odometry_timeout = 0, bus_error = 0, overrun = 0;

@@ -11,8 +11,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "app/tools/common/tool_files.hpp"
 #include "app/perception/marking_classes.hpp"
+#include "app/tools/common/tool_files.hpp"
 
 namespace markloop::eval {
 
@@ -24,9 +24,21 @@ struct Rgb {
 
 // One colour per marking class (index = Label), distinct on white.
 constexpr std::array<Rgb, perception::kMarkingClassCount> kClassColours = {{
-    {31, 119, 180}, {255, 127, 14}, {148, 103, 189}, {140, 86, 75},  {227, 119, 194},
-    {188, 189, 34}, {23, 190, 207}, {174, 199, 232}, {255, 187, 120}, {197, 176, 213},
-    {196, 156, 148}, {247, 182, 210}, {219, 219, 141}, {158, 218, 229}, {99, 99, 99},
+    {31, 119, 180},
+    {255, 127, 14},
+    {148, 103, 189},
+    {140, 86, 75},
+    {227, 119, 194},
+    {188, 189, 34},
+    {23, 190, 207},
+    {174, 199, 232},
+    {255, 187, 120},
+    {197, 176, 213},
+    {196, 156, 148},
+    {247, 182, 210},
+    {219, 219, 141},
+    {158, 218, 229},
+    {99, 99, 99},
     {57, 59, 121},
 }};
 constexpr Rgb kRoute{40, 40, 40};
@@ -85,8 +97,10 @@ class Layout {
 
 std::string length_text(double metres) {
   char text[32];
-  if (metres >= 1000.0) std::snprintf(text, sizeof text, "%g km", metres / 1000.0);
-  else std::snprintf(text, sizeof text, "%g m", metres);
+  if (metres >= 1000.0)
+    std::snprintf(text, sizeof text, "%g km", metres / 1000.0);
+  else
+    std::snprintf(text, sizeof text, "%g m", metres);
   return text;
 }
 
@@ -104,11 +118,20 @@ std::string xml_escaped(std::string_view text) {
   std::string out;
   for (const char c : text) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -120,7 +143,9 @@ std::string svg_colour(Rgb c) {
   return text;
 }
 
-cv::Scalar bgr(Rgb c) { return {double(c.b), double(c.g), double(c.r)}; }
+cv::Scalar bgr(Rgb c) {
+  return {double(c.b), double(c.g), double(c.r)};
+}
 
 }  // namespace
 
@@ -154,8 +179,8 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
   std::fprintf(f, "\"/>\n");
 
   for (const WorldMarking& m : *c.markings)
-    std::fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"3\" fill=\"%s\"/>\n", layout.px(m.x),
-                 layout.py(m.y), svg_colour(kClassColours[m.label]).c_str());
+    std::fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"3\" fill=\"%s\"/>\n", layout.px(m.x), layout.py(m.y),
+                 svg_colour(kClassColours[m.label]).c_str());
 
   for (const LoopOutcome& loop : *c.loops) {
     if (loop.verdict == Verdict::Unjudged) continue;
@@ -168,8 +193,9 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
                  layout.px(q.x), layout.py(q.y), layout.px(m.x), layout.py(m.y), colour.c_str(),
                  loop.pair.query, loop.pair.match);
     for (const Pose2* p : {&q, &m})
-      std::fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"4\" fill=\"none\" stroke=\"%s\" stroke-width=\"1.5\"/>\n",
-                   layout.px(p->x), layout.py(p->y), colour.c_str());
+      std::fprintf(
+          f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"4\" fill=\"none\" stroke=\"%s\" stroke-width=\"1.5\"/>\n",
+          layout.px(p->x), layout.py(p->y), colour.c_str());
   }
 
   // Scale bar.
@@ -212,7 +238,8 @@ bool write_png(const std::string& path, const FigureContent& c, std::string& err
   const Layout layout(c);
   cv::Mat image(layout.height(), layout.width(), CV_8UC3, cv::Scalar(255, 255, 255));
   const auto point = [&](double x, double y) {
-    return cv::Point(static_cast<int>(std::lround(layout.px(x))), static_cast<int>(std::lround(layout.py(y))));
+    return cv::Point(static_cast<int>(std::lround(layout.px(x))),
+                     static_cast<int>(std::lround(layout.py(y))));
   };
   cv::putText(image, c.title, {Layout::kMargin, 26}, cv::FONT_HERSHEY_SIMPLEX, 0.65, {0, 0, 0}, 2,
               cv::LINE_AA);
@@ -224,8 +251,7 @@ bool write_png(const std::string& path, const FigureContent& c, std::string& err
     const cv::Point q = point(p.x, p.y);
     if (polyline.empty() || polyline.back() != q) polyline.push_back(q);
   }
-  if (polyline.size() > 1)
-    cv::polylines(image, polyline, false, bgr(kRoute), 1, cv::LINE_AA);
+  if (polyline.size() > 1) cv::polylines(image, polyline, false, bgr(kRoute), 1, cv::LINE_AA);
   for (const WorldMarking& m : *c.markings)
     cv::circle(image, point(m.x, m.y), 3, bgr(kClassColours[m.label]), cv::FILLED, cv::LINE_AA);
   for (const LoopOutcome& loop : *c.loops) {
@@ -245,8 +271,8 @@ bool write_png(const std::string& path, const FigureContent& c, std::string& err
   cv::line(image, left - cv::Point(0, 6), left, {0, 0, 0}, 1);
   cv::line(image, left, left + cv::Point(bar_px, 0), {0, 0, 0}, 1);
   cv::line(image, left + cv::Point(bar_px, 0), left + cv::Point(bar_px, -6), {0, 0, 0}, 1);
-  cv::putText(image, length_text(bar_m), left + cv::Point(bar_px + 8, 4), cv::FONT_HERSHEY_SIMPLEX,
-              0.45, {0, 0, 0}, 1, cv::LINE_AA);
+  cv::putText(image, length_text(bar_m), left + cv::Point(bar_px + 8, 4), cv::FONT_HERSHEY_SIMPLEX, 0.45,
+              {0, 0, 0}, 1, cv::LINE_AA);
 
   int y = Layout::kTitle + Layout::kMargin + 10;
   const int x = layout.legend_x();

@@ -8,8 +8,8 @@
 #include <optional>
 #include <string_view>
 
-#include "app/tools/common/tool_files.hpp"
 #include "app/perception/marking_classes.hpp"
+#include "app/tools/common/tool_files.hpp"
 #include "app/tools/replay/paper_format.hpp"
 
 namespace markloop::eval {
@@ -67,8 +67,8 @@ class CsvFile {
       const auto fields = split_fields(trim(line));
       std::string problem;
       if (fields.size() != columns)
-        problem = "expected " + std::to_string(columns) + " comma-separated fields (" +
-                  std::string(header) + "), found " + std::to_string(fields.size());
+        problem = "expected " + std::to_string(columns) + " comma-separated fields (" + std::string(header) +
+                  "), found " + std::to_string(fields.size());
       else
         problem = row(fields);
       if (!problem.empty()) {
@@ -87,7 +87,8 @@ class CsvFile {
 double field_limit(std::string_view name) {
   constexpr double kMaxPixel = 1e6;
   if (name == "heading" || name == "car_yaw") return replay::kMaxYaw_rad;
-  if (name.size() == 2 && (name[0] == 'x' || name[0] == 'y') && name[1] >= '1' && name[1] <= '4') return kMaxPixel;
+  if (name.size() == 2 && (name[0] == 'x' || name[0] == 'y') && name[1] >= '1' && name[1] <= '4')
+    return kMaxPixel;
   return replay::kMaxPoseCoordinate_m;
 }
 
@@ -160,8 +161,8 @@ Progress::Progress(std::string what, std::size_t total_lines, std::size_t min_li
 void Progress::update(std::size_t lines_done) {
   if (!enabled_) return;
   while (next_tenth_ < 10 && lines_done * 10 >= next_tenth_ * total_) {
-    std::fprintf(stderr, "markloop-eval: %s: %zu%% (%zu of %zu lines)\n", what_.c_str(),
-                 next_tenth_ * 10, lines_done, total_);
+    std::fprintf(stderr, "markloop-eval: %s: %zu%% (%zu of %zu lines)\n", what_.c_str(), next_tenth_ * 10,
+                 lines_done, total_);
     ++next_tenth_;
   }
 }
@@ -175,8 +176,7 @@ std::size_t count_lines(std::string_view text) {
   return static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
 }
 
-bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out,
-                         std::string& error) {
+bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out, std::string& error) {
   out.clear();
   return CsvFile::read(
       path, "id,class,x,y,heading",
@@ -192,8 +192,8 @@ bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out
       error);
 }
 
-bool load_visible(const std::string& path, std::size_t frame_count,
-                  std::vector<VisibleMarking>& out, std::string& error) {
+bool load_visible(const std::string& path, std::size_t frame_count, std::vector<VisibleMarking>& out,
+                  std::string& error) {
   out.clear();
   const bool ok = CsvFile::read(
       path, "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4",
@@ -212,8 +212,8 @@ bool load_visible(const std::string& path, std::size_t frame_count,
   return ok;
 }
 
-bool load_detections(const std::string& path, std::size_t frame_count,
-                     std::vector<DetectionRecord>& out, std::string& error) {
+bool load_detections(const std::string& path, std::size_t frame_count, std::vector<DetectionRecord>& out,
+                     std::string& error) {
   out.clear();
   const bool ok = CsvFile::read(
       path, "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y",
@@ -221,13 +221,11 @@ bool load_detections(const std::string& path, std::size_t frame_count,
         std::string problem;
         DetectionRecord d;
         if (!frame_field("frame", f[0], frame_count, d.frame, problem) ||
-            !class_field("label", f[1], d.label, problem) ||
-            !number_field("score", f[2], d.score, problem) || !quad_fields(f, 3, d.quad, problem) ||
-            !number_field("ground_x", f[11], d.ground_x, problem) ||
+            !class_field("label", f[1], d.label, problem) || !number_field("score", f[2], d.score, problem) ||
+            !quad_fields(f, 3, d.quad, problem) || !number_field("ground_x", f[11], d.ground_x, problem) ||
             !number_field("ground_y", f[12], d.ground_y, problem))
           return problem;
-        if (d.score < 0.0 || d.score > 1.0)
-          return "score " + std::string(f[2]) + " is outside [0, 1]";
+        if (d.score < 0.0 || d.score > 1.0) return "score " + std::string(f[2]) + " is outside [0, 1]";
         out.push_back(d);
         return problem;
       },
@@ -251,7 +249,8 @@ bool load_landmarks(const std::string& path, std::size_t frame_count, std::vecto
             !frame_field("first_frame", f[2], frame_count, l.first_frame, problem) ||
             !frame_field("last_frame", f[3], frame_count, l.last_frame, problem) ||
             !number_field("x", f[4], l.x, problem) || !number_field("y", f[5], l.y, problem) ||
-            !number_field("car_x", f[6], l.car_x, problem) || !number_field("car_y", f[7], l.car_y, problem) ||
+            !number_field("car_x", f[6], l.car_x, problem) ||
+            !number_field("car_y", f[7], l.car_y, problem) ||
             !number_field("car_yaw", f[8], l.car_yaw, problem) ||
             !whole_field("has_car_pose", f[9], 2.0, has_car_pose, problem))
           return problem;

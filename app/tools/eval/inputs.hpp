@@ -85,12 +85,11 @@ inline constexpr std::size_t kMaxInputBytes = std::size_t{256} << 20;
 // directory or is over the limit ("FILE: what"), or a bad line. Frames
 // must lie in [0, frame_count) (the truth's frames). Results are sorted by
 // frame (stable).
-bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out,
-                         std::string& error);
-bool load_visible(const std::string& path, std::size_t frame_count,
-                  std::vector<VisibleMarking>& out, std::string& error);
-bool load_detections(const std::string& path, std::size_t frame_count,
-                     std::vector<DetectionRecord>& out, std::string& error);
+bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out, std::string& error);
+bool load_visible(const std::string& path, std::size_t frame_count, std::vector<VisibleMarking>& out,
+                  std::string& error);
+bool load_detections(const std::string& path, std::size_t frame_count, std::vector<DetectionRecord>& out,
+                     std::string& error);
 bool load_landmarks(const std::string& path, std::size_t frame_count, std::vector<LandmarkRecord>& out,
                     std::string& error);
 

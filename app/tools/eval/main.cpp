@@ -118,16 +118,22 @@ Options parse(int argc, char** argv) {
       o.dir = arg;
       continue;
     }
-    const char* v =
-        option_value(argc, argv, i,
-                     {"--can", "--detections", "--landmarks", "--tolerance", "--svg", "--png", "--json"});
-    if (arg == "--can") o.can = v;
-    else if (arg == "--detections") o.detections = v, o.detections_given = true;
-    else if (arg == "--landmarks") o.landmarks = v, o.landmarks_given = true;
-    else if (arg == "--tolerance") o.tolerance = parse_number(arg, v);
-    else if (arg == "--svg") o.svg = v;
-    else if (arg == "--png") o.png = v;
-    else if (arg == "--json") o.json = v;
+    const char* v = option_value(
+        argc, argv, i, {"--can", "--detections", "--landmarks", "--tolerance", "--svg", "--png", "--json"});
+    if (arg == "--can")
+      o.can = v;
+    else if (arg == "--detections")
+      o.detections = v, o.detections_given = true;
+    else if (arg == "--landmarks")
+      o.landmarks = v, o.landmarks_given = true;
+    else if (arg == "--tolerance")
+      o.tolerance = parse_number(arg, v);
+    else if (arg == "--svg")
+      o.svg = v;
+    else if (arg == "--png")
+      o.png = v;
+    else if (arg == "--json")
+      o.json = v;
   }
   if (o.dir.empty()) fail("DIR is required (see --help)");
   if (!(o.tolerance > 0 && o.tolerance <= 10000)) fail("--tolerance must be in (0, 10000] metres");
@@ -143,8 +149,8 @@ Options parse(int argc, char** argv) {
 // An output that is one of the inputs would destroy it: refused before the run.
 void check_outputs(const Options& o) {
   const std::filesystem::path dir(o.dir);
-  const std::string inputs[] = {dir / "frames.csv", dir / "markings.csv", dir / "visible.csv",
-                                o.can, o.detections, o.landmarks};
+  const std::string inputs[] = {dir / "frames.csv", dir / "markings.csv", dir / "visible.csv", o.can,
+                                o.detections,       o.landmarks};
   for (const std::string* output : {&o.svg, &o.png, &o.json})
     for (const std::string& input : inputs)
       if (!output->empty() && tools::overwrites(*output, input))
@@ -206,9 +212,12 @@ void json_spread(std::FILE* f, const char* name, const Spread& s) {
 
 const char* outcome_name(PassOutcome o) {
   switch (o) {
-    case PassOutcome::NamedRight: return "named_right";
-    case PassOutcome::NamedWrong: return "named_wrong";
-    case PassOutcome::NoLandmark: return "no_landmark";
+    case PassOutcome::NamedRight:
+      return "named_right";
+    case PassOutcome::NamedWrong:
+      return "named_wrong";
+    case PassOutcome::NoLandmark:
+      return "no_landmark";
   }
   return "?";
 }
@@ -228,12 +237,14 @@ const char* misplacement(const LandmarkScore& l, const MisplacedLandmark& m) {
 void print_landmarks(const LandmarkScore& l, const std::vector<LandmarkRecord>& landmarks,
                      const std::vector<WorldMarking>& world) {
   const std::size_t placed = l.landmarks - l.without_pose;
-  std::printf("\nLandmarks (the ECU's, placed by their offset from the car at their last frame; on a\n"
-              "marking: the nearest within %.1f m, of a crosswalk anywhere across the road)\n",
-              kLandmarkOnMarking_m);
-  std::printf("  %-34s %zu (%zu without the car's pose, not judged)\n", "landmarks", l.landmarks, l.without_pose);
-  std::printf("  %-34s %s (%zu)\n", "on a marking of their label", percent_text(l.right_label, placed).c_str(),
-              l.right_label);
+  std::printf(
+      "\nLandmarks (the ECU's, placed by their offset from the car at their last frame; on a\n"
+      "marking: the nearest within %.1f m, of a crosswalk anywhere across the road)\n",
+      kLandmarkOnMarking_m);
+  std::printf("  %-34s %zu (%zu without the car's pose, not judged)\n", "landmarks", l.landmarks,
+              l.without_pose);
+  std::printf("  %-34s %s (%zu)\n", "on a marking of their label",
+              percent_text(l.right_label, placed).c_str(), l.right_label);
   std::printf("  %-34s %zu\n", "on a marking of another class", l.wrong_label);
   std::printf("  %-34s %zu\n", "on no marking", l.on_nothing);
   if (l.distance_m.count > 0)
@@ -242,26 +253,29 @@ void print_landmarks(const LandmarkScore& l, const std::vector<LandmarkRecord>& 
   for (std::size_t i = 0; i < l.misplaced.size() && i < kListed; ++i) {
     const MisplacedLandmark& m = l.misplaced[i];
     const LandmarkRecord& r = landmarks[m.landmark];
-    std::printf("    %s: landmark %zu (%s), frames %u..%u, at (%.1f, %.1f) m", misplacement(l, m), m.landmark + 1,
-                class_name(r.label).c_str(), r.first_frame, r.last_frame, m.x, m.y);
+    std::printf("    %s: landmark %zu (%s), frames %u..%u, at (%.1f, %.1f) m", misplacement(l, m),
+                m.landmark + 1, class_name(r.label).c_str(), r.first_frame, r.last_frame, m.x, m.y);
     if (m.nearest)
       std::printf("; nearest marking %u (%s), %.2f m", world[*m.nearest].id,
                   class_name(world[*m.nearest].label).c_str(), m.distance_m);
     std::printf("\n");
   }
-  if (l.misplaced.size() > kListed) std::printf("    ... %zu more (all in --json)\n", l.misplaced.size() - kListed);
+  if (l.misplaced.size() > kListed)
+    std::printf("    ... %zu more (all in --json)\n", l.misplaced.size() - kListed);
 }
 
 void print_passes(const PassScore& p) {
   const std::size_t total = p.passes.size();
   const PassRegion region;
-  std::printf("\nMarkings driven past (a pass: the frames showing a marking, gaps under %.0f s; counted\n"
-              "when its centre came %.0f..%.0f m ahead and within %.0f m to a side; named by the landmark\n"
-              "the ECU made of it on that pass)\n",
-              kPassGap_s, region.ahead_min_m, region.ahead_max_m, region.side_m);
+  std::printf(
+      "\nMarkings driven past (a pass: the frames showing a marking, gaps under %.0f s; counted\n"
+      "when its centre came %.0f..%.0f m ahead and within %.0f m to a side; named by the landmark\n"
+      "the ECU made of it on that pass)\n",
+      kPassGap_s, region.ahead_min_m, region.ahead_max_m, region.side_m);
   std::printf("  %-34s %zu (and %zu at the drive's start or end, not judged)\n", "passes", total,
               p.cut_by_drive_ends);
-  std::printf("  %-34s %s (%zu)\n", "named right", percent_text(p.count(PassOutcome::NamedRight), total).c_str(),
+  std::printf("  %-34s %s (%zu)\n", "named right",
+              percent_text(p.count(PassOutcome::NamedRight), total).c_str(),
               p.count(PassOutcome::NamedRight));
   std::printf("  %-34s %zu\n", "named wrong", p.count(PassOutcome::NamedWrong));
   std::printf("  %-34s %zu\n", "no landmark", p.count(PassOutcome::NoLandmark));
@@ -269,7 +283,8 @@ void print_passes(const PassScore& p) {
   for (std::size_t c = 0; c < p.passes_of_class.size(); ++c) {
     if (p.passes_of_class[c] == 0) continue;
     std::printf("  %-14s %8zu %8zu %8s\n", class_name(static_cast<Label>(c)).c_str(), p.passes_of_class[c],
-                p.named_right_of_class[c], percent_text(p.named_right_of_class[c], p.passes_of_class[c]).c_str());
+                p.named_right_of_class[c],
+                percent_text(p.named_right_of_class[c], p.passes_of_class[c]).c_str());
   }
   std::size_t listed = 0, unlisted = 0;
   for (const MarkingPass& pass : p.passes) {
@@ -305,17 +320,16 @@ bool write_json(const std::string& path, const Options& o, std::size_t frames, d
   json_rejects(f, "status", log.status_frames);
   std::fprintf(f, ",\"detections_incomplete\":%llu},", (unsigned long long)log.detections_incomplete);
   const StatusSummary& s = log.status;
-  std::fprintf(f,
-               "\"status\":{\"frames_processed\":%u,\"frames_dropped\":%u,\"loop_time_max_ms\":%.2f,"
-               "\"database_fill_percent\":%.1f,\"landmarks\":%u,\"sequences\":%u,\"last_state\":\"%s\","
-               "\"frames_blind\":%u,\"fault_frames\":{\"camera_lost\":%llu,\"camera_blind\":%llu,"
-               "\"odometry_timeout\":%llu,\"bus_error\":%llu,\"overrun\":%llu}},",
-               s.last.frames_processed, s.last.frames_dropped, s.loop_time_max_ms,
-               s.last.database_fill_percent, s.last.landmark_count, s.last.sequence_count,
-               std::string(dbc::to_string(s.last.system_state)).c_str(), s.last.frames_blind,
-               (unsigned long long)s.camera_lost, (unsigned long long)s.camera_blind,
-               (unsigned long long)s.odometry_timeout,
-               (unsigned long long)s.bus_error, (unsigned long long)s.overrun);
+  std::fprintf(
+      f,
+      "\"status\":{\"frames_processed\":%u,\"frames_dropped\":%u,\"loop_time_max_ms\":%.2f,"
+      "\"database_fill_percent\":%.1f,\"landmarks\":%u,\"sequences\":%u,\"last_state\":\"%s\","
+      "\"frames_blind\":%u,\"fault_frames\":{\"camera_lost\":%llu,\"camera_blind\":%llu,"
+      "\"odometry_timeout\":%llu,\"bus_error\":%llu,\"overrun\":%llu}},",
+      s.last.frames_processed, s.last.frames_dropped, s.loop_time_max_ms, s.last.database_fill_percent,
+      s.last.landmark_count, s.last.sequence_count, std::string(dbc::to_string(s.last.system_state)).c_str(),
+      s.last.frames_blind, (unsigned long long)s.camera_lost, (unsigned long long)s.camera_blind,
+      (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error, (unsigned long long)s.overrun);
   std::fprintf(f,
                "\"loops\":{\"detections\":%zu,\"correct\":%zu,\"wrong\":%zu,\"unjudged\":%zu,"
                "\"revisit_segments\":%zu,\"revisit_segments_detected\":%zu,\"pose_errors\":%zu,"
@@ -335,18 +349,21 @@ bool write_json(const std::string& path, const Options& o, std::size_t frames, d
   for (std::size_t i = 0; i < e.missed_stretches.size(); ++i) {
     const replay::MissedStretch& m = e.missed_stretches[i];
     std::fprintf(f, "%s{\"from_m\":%llu,\"to_m\":%llu,\"frames\":[%zu,%zu],\"first_visit_frames\":[%zu,%zu]}",
-                 i > 0 ? "," : "", (unsigned long long)(m.index * 100), (unsigned long long)((m.index + 1) * 100),
-                 m.first_frame, m.last_frame,
-                 m.first_visit_from, m.first_visit_to);
+                 i > 0 ? "," : "", (unsigned long long)(m.index * 100),
+                 (unsigned long long)((m.index + 1) * 100), m.first_frame, m.last_frame, m.first_visit_from,
+                 m.first_visit_to);
   }
   std::fprintf(f, "]");
   std::fprintf(f, ",\"events\":[");
   for (std::size_t i = 0; i < loops.outcomes.size(); ++i) {
     const LoopOutcome& l = loops.outcomes[i];
-    std::fprintf(f, "%s{\"query_frame\":%u,\"match_frame\":%u,\"verdict\":\"%s\",\"true_distance_m\":%.3f,"
+    std::fprintf(f,
+                 "%s{\"query_frame\":%u,\"match_frame\":%u,\"verdict\":\"%s\",\"true_distance_m\":%.3f,"
                  "\"latency_s\":%.6f",
                  i ? "," : "", l.pair.query, l.pair.match,
-                 l.verdict == Verdict::Correct ? "correct" : l.verdict == Verdict::Wrong ? "wrong" : "unjudged",
+                 l.verdict == Verdict::Correct ? "correct"
+                 : l.verdict == Verdict::Wrong ? "wrong"
+                                               : "unjudged",
                  l.true_distance_m, l.latency_s);
     if (l.pose_error)
       std::fprintf(f, ",\"translation_error_m\":%.4f,\"rotation_error_deg\":%.4f",
@@ -356,13 +373,16 @@ bool write_json(const std::string& path, const Options& o, std::size_t frames, d
   std::fprintf(f, "]}");
   if (markings != nullptr) {
     const MarkingScore& m = *markings;
-    std::fprintf(f, ",\"markings\":{\"visible\":%zu,\"detections\":%zu,\"matched\":%zu,\"right_label\":%zu,"
-                 "\"per_class\":{", m.truth, m.detections, m.matched, m.right_label);
+    std::fprintf(f,
+                 ",\"markings\":{\"visible\":%zu,\"detections\":%zu,\"matched\":%zu,\"right_label\":%zu,"
+                 "\"per_class\":{",
+                 m.truth, m.detections, m.matched, m.right_label);
     bool first = true;
     for (std::size_t c = 0; c < m.per_class.size(); ++c) {
       const ClassScore& k = m.per_class[c];
       if (k.truth == 0 && k.detections == 0) continue;
-      std::fprintf(f, "%s\"%s\":{\"visible\":%zu,\"found\":%zu,\"right_label\":%zu,\"detections\":%zu,"
+      std::fprintf(f,
+                   "%s\"%s\":{\"visible\":%zu,\"found\":%zu,\"right_label\":%zu,\"detections\":%zu,"
                    "\"detections_matched\":%zu}",
                    first ? "" : ",", std::string(perception::kMarkingClassNames[c]).c_str(), k.truth,
                    k.truth_found, k.truth_right_label, k.detections, k.detections_matched);
@@ -371,14 +391,16 @@ bool write_json(const std::string& path, const Options& o, std::size_t frames, d
     std::fprintf(f, "},\"confusion\":[");
     for (std::size_t t = 0; t < m.confusion.size(); ++t) {
       std::fprintf(f, "%s[", t ? "," : "");
-      for (std::size_t d = 0; d < m.confusion[t].size(); ++d) std::fprintf(f, "%s%zu", d ? "," : "", m.confusion[t][d]);
+      for (std::size_t d = 0; d < m.confusion[t].size(); ++d)
+        std::fprintf(f, "%s%zu", d ? "," : "", m.confusion[t][d]);
       std::fputc(']', f);
     }
     std::fprintf(f, "]}");
   }
   if (landmarks != nullptr) {
     const LandmarkScore& l = *landmarks;
-    std::fprintf(f, ",\"landmarks\":{\"count\":%zu,\"without_pose\":%zu,\"right_label\":%zu,\"wrong_label\":%zu,"
+    std::fprintf(f,
+                 ",\"landmarks\":{\"count\":%zu,\"without_pose\":%zu,\"right_label\":%zu,\"wrong_label\":%zu,"
                  "\"on_nothing\":%zu,",
                  l.landmarks, l.without_pose, l.right_label, l.wrong_label, l.on_nothing);
     json_spread(f, "distance_m", l.distance_m);
@@ -386,9 +408,10 @@ bool write_json(const std::string& path, const Options& o, std::size_t frames, d
     for (std::size_t i = 0; i < l.misplaced.size(); ++i) {
       const MisplacedLandmark& m = l.misplaced[i];
       const LandmarkRecord& r = landmark_records[m.landmark];
-      std::fprintf(f, "%s{\"landmark\":%zu,\"label\":\"%s\",\"frames\":[%u,%u],\"at\":[%.3f,%.3f],\"judged\":\"%s\"",
-                   i ? "," : "", m.landmark + 1, class_name(r.label).c_str(), r.first_frame, r.last_frame, m.x, m.y,
-                   misplacement(l, m));
+      std::fprintf(
+          f, "%s{\"landmark\":%zu,\"label\":\"%s\",\"frames\":[%u,%u],\"at\":[%.3f,%.3f],\"judged\":\"%s\"",
+          i ? "," : "", m.landmark + 1, class_name(r.label).c_str(), r.first_frame, r.last_frame, m.x, m.y,
+          misplacement(l, m));
       if (m.nearest)
         std::fprintf(f, ",\"nearest\":{\"id\":%u,\"class\":\"%s\",\"distance_m\":%.3f}", world[*m.nearest].id,
                      class_name(world[*m.nearest].label).c_str(), m.distance_m);
@@ -407,16 +430,18 @@ bool write_json(const std::string& path, const Options& o, std::size_t frames, d
     for (std::size_t c = 0; c < p.passes_of_class.size(); ++c) {
       if (p.passes_of_class[c] == 0) continue;
       std::fprintf(f, "%s\"%s\":{\"passes\":%zu,\"named_right\":%zu}", first ? "" : ",",
-                   class_name(static_cast<Label>(c)).c_str(), p.passes_of_class[c], p.named_right_of_class[c]);
+                   class_name(static_cast<Label>(c)).c_str(), p.passes_of_class[c],
+                   p.named_right_of_class[c]);
       first = false;
     }
     std::fprintf(f, "},\"not_named_right\":[");
     first = true;
     for (const MarkingPass& pass : p.passes) {
       if (pass.outcome == PassOutcome::NamedRight) continue;
-      std::fprintf(f, "%s{\"id\":%u,\"class\":\"%s\",\"frames\":[%u,%u],\"detections\":%zu,\"outcome\":\"%s\"",
-                   first ? "" : ",", pass.id, class_name(pass.label).c_str(), pass.first_frame, pass.last_frame,
-                   pass.detections, outcome_name(pass.outcome));
+      std::fprintf(f,
+                   "%s{\"id\":%u,\"class\":\"%s\",\"frames\":[%u,%u],\"detections\":%zu,\"outcome\":\"%s\"",
+                   first ? "" : ",", pass.id, class_name(pass.label).c_str(), pass.first_frame,
+                   pass.last_frame, pass.detections, outcome_name(pass.outcome));
       if (pass.outcome == PassOutcome::NamedWrong)
         std::fprintf(f, ",\"named\":\"%s\"", class_name(pass.named).c_str());
       std::fputc('}', f);
@@ -485,9 +510,9 @@ int main(int argc, char** argv) {
   const LandmarkScore placed = have_landmarks ? score_landmarks(world, route, landmarks) : LandmarkScore{};
   // A pass's detections are told with it: it needs both files.
   const bool have_passes = have_landmarks && have_markings;
-  const PassScore passes = have_passes ? score_passes(world, route, times, visible, detections, markings,
-                                                      landmarks, placed)
-                                       : PassScore{};
+  const PassScore passes =
+      have_passes ? score_passes(world, route, times, visible, detections, markings, landmarks, placed)
+                  : PassScore{};
 
   // --- table ---
   const double length_m = route_length_m(route);
@@ -515,14 +540,13 @@ int main(int argc, char** argv) {
     if (s.page_seen[2])
       std::printf("  %-34s %u landmarks, %u sequences\n", "database", s.last.landmark_count,
                   s.last.sequence_count);
-    if (s.page_seen[3])
-      std::printf("  %-34s %u\n", "frames showing no road", s.last.frames_blind);
-    std::printf("  %-34s camera lost %llu, camera blind %llu, odometry timeout %llu, bus error %llu, "
-                "overrun %llu\n",
-                "Status frames with a fault", (unsigned long long)s.camera_lost,
-                (unsigned long long)s.camera_blind,
-                (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error,
-                (unsigned long long)s.overrun);
+    if (s.page_seen[3]) std::printf("  %-34s %u\n", "frames showing no road", s.last.frames_blind);
+    std::printf(
+        "  %-34s camera lost %llu, camera blind %llu, odometry timeout %llu, bus error %llu, "
+        "overrun %llu\n",
+        "Status frames with a fault", (unsigned long long)s.camera_lost, (unsigned long long)s.camera_blind,
+        (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error,
+        (unsigned long long)s.overrun);
   }
 
   std::printf("\nLoop detections (correct when the true positions are within %g m)\n", o.tolerance);
@@ -540,9 +564,8 @@ int main(int argc, char** argv) {
     std::printf("\n");
   }
   std::printf("  %-34s %s\n", "precision", percent_text(e.correct, e.correct + e.wrong).c_str());
-  std::printf("  %-34s %zu of %zu (%s)\n", "revisited 100 m stretches detected",
-              e.revisit_segments_detected, e.revisit_segments,
-              percent_text(e.revisit_segments_detected, e.revisit_segments).c_str());
+  std::printf("  %-34s %zu of %zu (%s)\n", "revisited 100 m stretches detected", e.revisit_segments_detected,
+              e.revisit_segments, percent_text(e.revisit_segments_detected, e.revisit_segments).c_str());
   for (const replay::MissedStretch& m : e.missed_stretches)
     std::printf("    missed %llu..%llu m: frames %zu..%zu revisit frames %zu..%zu\n",
                 (unsigned long long)(m.index * 100), (unsigned long long)((m.index + 1) * 100), m.first_frame,
@@ -560,9 +583,10 @@ int main(int argc, char** argv) {
   print_spread("  CAN stamp - time of QueryFrame", loops.since_query_frame_s, 1000.0, "ms");
   print_spread("  CAN stamp - last frame before it", loops.processing_s, 1000.0, "ms");
   if (loops.query_time_inconsistent > 0)
-    std::printf("  note: %zu of %zu detections carry a QueryTime before their QueryFrame or after\n"
-                "        their send time (the DBC: capture time of the frame that completed it)\n",
-                loops.query_time_inconsistent, loops.outcomes.size());
+    std::printf(
+        "  note: %zu of %zu detections carry a QueryTime before their QueryFrame or after\n"
+        "        their send time (the DBC: capture time of the frame that completed it)\n",
+        loops.query_time_inconsistent, loops.outcomes.size());
 
   if (have_markings) {
     std::printf("\nMarkings (%s against visible.csv; match: centre inside or IoU >= %.1f)\n",
@@ -577,8 +601,8 @@ int main(int argc, char** argv) {
     std::printf("  %-34s %s (%zu of %zu matched)\n", "classification accuracy",
                 percent_text(markings.right_label, markings.matched).c_str(), markings.right_label,
                 markings.matched);
-    std::printf("  %-14s %8s %8s %8s %10s %10s %9s\n", "class", "visible", "found", "recall",
-                "detections", "precision", "accuracy");
+    std::printf("  %-14s %8s %8s %8s %10s %10s %9s\n", "class", "visible", "found", "recall", "detections",
+                "precision", "accuracy");
     for (std::size_t c = 0; c < markings.per_class.size(); ++c) {
       const ClassScore& k = markings.per_class[c];
       if (k.truth == 0 && k.detections == 0) continue;

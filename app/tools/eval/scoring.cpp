@@ -88,10 +88,14 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
 namespace {
 
 // The point (x, y) in `frame`'s own axes: x along its heading, y to its left.
-Pose2 relative_to(const Pose2& frame, double x, double y) { return compose(inverse(frame), Pose2{x, y, 0.0}); }
+Pose2 relative_to(const Pose2& frame, double x, double y) {
+  return compose(inverse(frame), Pose2{x, y, 0.0});
+}
 
 // The marking's centre in the car's frame: metres ahead, metres to the left.
-Pose2 in_car_frame(const WorldMarking& m, const Pose2& car) { return relative_to(car, m.x, m.y); }
+Pose2 in_car_frame(const WorldMarking& m, const Pose2& car) {
+  return relative_to(car, m.x, m.y);
+}
 
 // From (x, y) to the marking, as score_landmarks measures it.
 double distance_to(const WorldMarking& m, double x, double y, Label crosswalk) {
@@ -276,8 +280,8 @@ bool centre_inside(const Quad& detection, const Quad& truth) {
   std::vector<cv::Point2f> contour;
   for (const auto& corner : truth)
     contour.emplace_back(static_cast<float>(corner[0]), static_cast<float>(corner[1]));
-  return cv::pointPolygonTest(contour, cv::Point2f(static_cast<float>(cx), static_cast<float>(cy)),
-                              false) >= 0.0;
+  return cv::pointPolygonTest(contour, cv::Point2f(static_cast<float>(cx), static_cast<float>(cy)), false) >=
+         0.0;
 }
 
 MarkingScore score_markings(const std::vector<VisibleMarking>& truth,

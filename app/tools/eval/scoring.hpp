@@ -9,10 +9,10 @@
 #include <optional>
 #include <vector>
 
-#include "app/tools/eval/can_log.hpp"
 #include "app/engine/config.hpp"
-#include "app/tools/eval/inputs.hpp"
 #include "app/perception/marking_classes.hpp"
+#include "app/tools/eval/can_log.hpp"
+#include "app/tools/eval/inputs.hpp"
 #include "app/tools/replay/truth_judge.hpp"
 
 namespace markloop::eval {
@@ -22,9 +22,9 @@ enum class Verdict { Correct, Wrong, Unjudged };
 struct LoopOutcome {
   replay::FramePair pair;
   Verdict verdict = Verdict::Unjudged;
-  double true_distance_m = 0.0;             // between the two frames' true positions
+  double true_distance_m = 0.0;                 // between the two frames' true positions
   std::optional<replay::PoseError> pose_error;  // detections with PoseValid, correct or wrong
-  double latency_s = 0.0;                   // CAN stamp - QueryTime
+  double latency_s = 0.0;                       // CAN stamp - QueryTime
 };
 
 // Order statistics of a sample; all zero when `count` is 0.
@@ -40,7 +40,7 @@ Spread spread_of(std::vector<double> values);
 struct LoopScore {
   replay::Evaluation evaluation;
   std::vector<LoopOutcome> outcomes;  // one per detection, in log order
-  Spread latency_s;     // CAN stamp - QueryTime
+  Spread latency_s;                   // CAN stamp - QueryTime
   // CAN stamp - frames.csv's time of QueryFrame: from the image of the query
   // place to the bus, including the engine's wait for the markings ahead.
   Spread since_query_frame_s;

@@ -56,8 +56,7 @@ CompatSequence start_sequence(const MarkingRecord& r) {
 bool CompatMatches::operator==(const CompatMatches& other) const {
   if (size() != other.size()) return false;
   for (std::size_t i = 0; i < size(); ++i)
-    if (!std::ranges::equal(earlier(i), other.earlier(i)) ||
-        !std::ranges::equal(later(i), other.later(i)))
+    if (!std::ranges::equal(earlier(i), other.earlier(i)) || !std::ranges::equal(later(i), other.later(i)))
       return false;
   return true;
 }
@@ -67,8 +66,7 @@ std::uint32_t CompatMatches::add_sequence(const int* frames) {
   return static_cast<std::uint32_t>(frames_.size() / k_ - 1);
 }
 
-CompatMatches run_compat_reference(const std::vector<MarkingRecord>& records,
-                                   const CompatParameters& p) {
+CompatMatches run_compat_reference(const std::vector<MarkingRecord>& records, const CompatParameters& p) {
   std::vector<CompatSequence> sequences;
   for (const MarkingRecord& r : records) {
     if (sequences.empty()) sequences.push_back(start_sequence(r));
@@ -93,8 +91,7 @@ CompatMatches run_compat_reference(const std::vector<MarkingRecord>& records,
   CompatMatches matches(p.k);
   std::vector<std::uint32_t> ids(sequences.size());
   for (std::size_t i = 0; i < sequences.size(); ++i)
-    if (sequences[i].frames.size() == p.k)
-      ids[i] = matches.add_sequence(sequences[i].frames.data());
+    if (sequences[i].frames.size() == p.k) ids[i] = matches.add_sequence(sequences[i].frames.data());
   for (std::size_t i = 0; i < sequences.size(); ++i) {
     const CompatSequence& a = sequences[i];
     if (a.frames.size() != p.k) continue;
@@ -103,8 +100,7 @@ CompatMatches run_compat_reference(const std::vector<MarkingRecord>& records,
       if (b.frames.size() != p.k) continue;
       bool match = true;
       for (unsigned e = 0; e < p.k && match; ++e) {
-        match = *a.labels[e] == *b.labels[e] &&
-                std::abs(a.frames[e] - b.frames[e]) >= p.match_frame_gap() &&
+        match = *a.labels[e] == *b.labels[e] && std::abs(a.frames[e] - b.frames[e]) >= p.match_frame_gap() &&
                 std::abs(a.distances[e] - b.distances[e]) <= p.distance_tolerance;
       }
       if (match) matches.add(ids[i], ids[j]);
@@ -279,8 +275,8 @@ MatchIndex::MatchIndex(const SequenceStore& store, const CompatParameters& p)
   order_.resize(members_.size());
   std::iota(order_.begin(), order_.end(), std::size_t{0});
   std::stable_sort(order_.begin(), order_.end(), [&](std::size_t a, std::size_t b) {
-    return std::lexicographical_compare(&keys_[a * dims_], &keys_[(a + 1) * dims_],
-                                        &keys_[b * dims_], &keys_[(b + 1) * dims_]);
+    return std::lexicographical_compare(&keys_[a * dims_], &keys_[(a + 1) * dims_], &keys_[b * dims_],
+                                        &keys_[(b + 1) * dims_]);
   });
 }
 
@@ -306,10 +302,10 @@ void MatchIndex::descend(std::size_t c, unsigned d, std::size_t lo, std::size_t 
   const std::int64_t own = key(c, d);
   const std::int64_t spread = is_bin(d) ? 1 : 0;
   for (std::int64_t value = own - spread; value <= own + spread; ++value) {
-    const auto from = std::lower_bound(
-        first, last, value, [&](std::size_t m, std::int64_t v) { return key(m, d) < v; });
-    const auto to = std::upper_bound(
-        from, last, value, [&](std::int64_t v, std::size_t m) { return v < key(m, d); });
+    const auto from =
+        std::lower_bound(first, last, value, [&](std::size_t m, std::int64_t v) { return key(m, d) < v; });
+    const auto to =
+        std::upper_bound(from, last, value, [&](std::int64_t v, std::size_t m) { return v < key(m, d); });
     if (from != to)
       descend(c, d + 1, static_cast<std::size_t>(from - order_.begin()),
               static_cast<std::size_t>(to - order_.begin()), out);

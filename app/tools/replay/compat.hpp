@@ -39,9 +39,7 @@ class CompatMatches {
   void add(std::uint32_t earlier, std::uint32_t later) { pairs_.emplace_back(earlier, later); }
 
  private:
-  std::span<const int> sequence(std::uint32_t s) const {
-    return {&frames_[std::size_t{s} * k_], k_};
-  }
+  std::span<const int> sequence(std::uint32_t s) const { return {&frames_[std::size_t{s} * k_], k_}; }
 
   unsigned k_;
   std::vector<int> frames_;  // k per sequence
@@ -50,7 +48,7 @@ class CompatMatches {
 
 struct CompatParameters {
   unsigned k = 4;
-  int frame_gap = 30;         // T: successive elements at least T frames apart
+  int frame_gap = 30;  // T: successive elements at least T frames apart
   float distance_tolerance = 2.0f;
   // Matched elements at least this many frames apart (the authors' 100 * T).
   int match_frame_gap() const { return 100 * frame_gap; }
@@ -73,8 +71,7 @@ using CompatProgressReport = std::function<void(const CompatProgress&)>;
 // can match are compared. Linear in the records plus the matches on drives
 // (the all-pairs cost returns only where most sequences do match). `report`,
 // when set, is called now and then during the run and once at its end.
-CompatMatches run_compat(const std::vector<MarkingRecord>& records,
-                         const CompatParameters& parameters,
+CompatMatches run_compat(const std::vector<MarkingRecord>& records, const CompatParameters& parameters,
                          const CompatProgressReport& report = {});
 
 // The straight port: every sequence against every other, O(N^2 k);

@@ -136,8 +136,10 @@ constexpr Range kCapacityRange{16, double(std::size_t{1} << 30), "", true};
 
 std::string number_text(double v) {
   char buf[64];
-  if (v == std::floor(v) && std::fabs(v) < 1e15) std::snprintf(buf, sizeof buf, "%.0f", v);
-  else std::snprintf(buf, sizeof buf, "%g", v);
+  if (v == std::floor(v) && std::fabs(v) < 1e15)
+    std::snprintf(buf, sizeof buf, "%.0f", v);
+  else
+    std::snprintf(buf, sizeof buf, "%g", v);
   return buf;
 }
 
@@ -156,8 +158,7 @@ double parse_in_range(std::string_view option, const char* text, const Range& r)
   const double value = std::strtod(text, &end);
   const bool parsed = end != text && *end == '\0';
   // Infinity, and what overflows a double (1e999), is a number out of range.
-  if (!parsed || std::isnan(value))
-    fail(name + ": not a number: '" + text + "'; expected " + range_text(r));
+  if (!parsed || std::isnan(value)) fail(name + ": not a number: '" + text + "'; expected " + range_text(r));
   if (!(value >= r.min && value <= r.max)) fail(name + ": " + text + " is outside " + range_text(r));
   if (r.whole && value != std::floor(value))
     fail(name + ": not a whole number: '" + text + "'; expected " + range_text(r));
@@ -176,33 +177,70 @@ Options parse(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       std::exit(0);
     }
-    if (arg == "--compat") { o.compat = true; continue; }
-    if (arg == "--quiet") { o.quiet = true; continue; }
-    const char* v = option_value(
-        argc, argv, i,
-        {"--markings", "--poses", "--out", "--jsonl", "--truth", "--fps", "--truth-radius", "--k",
-         "--abs-tol", "--rel-tol", "--min-separation", "--min-separation-s", "--max-residual",
-         "--association-radius", "--commit-after", "--min-observations", "--skip-rows",
-         "--sequence-capacity", "--landmark-capacity", "--sweep"});
+    if (arg == "--compat") {
+      o.compat = true;
+      continue;
+    }
+    if (arg == "--quiet") {
+      o.quiet = true;
+      continue;
+    }
+    const char* v = option_value(argc, argv, i,
+                                 {"--markings",
+                                  "--poses",
+                                  "--out",
+                                  "--jsonl",
+                                  "--truth",
+                                  "--fps",
+                                  "--truth-radius",
+                                  "--k",
+                                  "--abs-tol",
+                                  "--rel-tol",
+                                  "--min-separation",
+                                  "--min-separation-s",
+                                  "--max-residual",
+                                  "--association-radius",
+                                  "--commit-after",
+                                  "--min-observations",
+                                  "--skip-rows",
+                                  "--sequence-capacity",
+                                  "--landmark-capacity",
+                                  "--sweep"});
     EngineConfig& e = o.engine;
-    if (arg == "--markings") o.markings = v;
-    else if (arg == "--poses") o.poses = v;
-    else if (arg == "--out") o.out = v;
-    else if (arg == "--jsonl") o.jsonl = v;
-    else if (arg == "--truth") o.truth = v;
-    else if (arg == "--fps") o.fps = parse_in_range(arg, v, kFpsRange);
-    else if (arg == "--truth-radius") o.truth_radius = parse_in_range(arg, v, kTruthRadiusRange);
-    else if (arg == "--k") e.chain.k = parse_count(arg, v, kKRange);
-    else if (arg == "--abs-tol") e.match.distance_tolerance_abs_m = parse_in_range(arg, v, kAbsTolRange);
-    else if (arg == "--rel-tol") e.match.distance_tolerance_rel = parse_in_range(arg, v, kRelTolRange);
-    else if (arg == "--min-separation") e.match.min_separation_m = parse_in_range(arg, v, kMinSeparationRange);
-    else if (arg == "--min-separation-s") e.match.min_separation_s = parse_in_range(arg, v, kMinSeparationSRange);
-    else if (arg == "--max-residual") e.match.max_residual_m = parse_in_range(arg, v, kMaxResidualRange);
+    if (arg == "--markings")
+      o.markings = v;
+    else if (arg == "--poses")
+      o.poses = v;
+    else if (arg == "--out")
+      o.out = v;
+    else if (arg == "--jsonl")
+      o.jsonl = v;
+    else if (arg == "--truth")
+      o.truth = v;
+    else if (arg == "--fps")
+      o.fps = parse_in_range(arg, v, kFpsRange);
+    else if (arg == "--truth-radius")
+      o.truth_radius = parse_in_range(arg, v, kTruthRadiusRange);
+    else if (arg == "--k")
+      e.chain.k = parse_count(arg, v, kKRange);
+    else if (arg == "--abs-tol")
+      e.match.distance_tolerance_abs_m = parse_in_range(arg, v, kAbsTolRange);
+    else if (arg == "--rel-tol")
+      e.match.distance_tolerance_rel = parse_in_range(arg, v, kRelTolRange);
+    else if (arg == "--min-separation")
+      e.match.min_separation_m = parse_in_range(arg, v, kMinSeparationRange);
+    else if (arg == "--min-separation-s")
+      e.match.min_separation_s = parse_in_range(arg, v, kMinSeparationSRange);
+    else if (arg == "--max-residual")
+      e.match.max_residual_m = parse_in_range(arg, v, kMaxResidualRange);
     else if (arg == "--association-radius")
       e.tracker.association_radius_m = parse_in_range(arg, v, kAssociationRadiusRange);
-    else if (arg == "--commit-after") e.tracker.commit_after_s = parse_in_range(arg, v, kCommitAfterRange);
-    else if (arg == "--min-observations") e.tracker.min_observations = parse_count(arg, v, kMinObservationsRange);
-    else if (arg == "--skip-rows") e.chain.max_skipped_rows = parse_count(arg, v, kSkipRowsRange);
+    else if (arg == "--commit-after")
+      e.tracker.commit_after_s = parse_in_range(arg, v, kCommitAfterRange);
+    else if (arg == "--min-observations")
+      e.tracker.min_observations = parse_count(arg, v, kMinObservationsRange);
+    else if (arg == "--skip-rows")
+      e.chain.max_skipped_rows = parse_count(arg, v, kSkipRowsRange);
     else if (arg == "--sequence-capacity")
       e.database.sequence_capacity = static_cast<std::size_t>(parse_in_range(arg, v, kCapacityRange));
     else if (arg == "--landmark-capacity")
@@ -210,8 +248,9 @@ Options parse(int argc, char** argv) {
     else if (arg == "--sweep") {
       const std::string text = v;
       const auto dots = text.find("..");
-      const std::string expected = "--sweep: expected A..B with 2 <= A <= B <= " +
-                                   std::to_string(kMaxSequenceLength) + ", found '" + text + "'";
+      const std::string expected =
+          "--sweep: expected A..B with 2 <= A <= B <= " + std::to_string(kMaxSequenceLength) + ", found '" +
+          text + "'";
       if (dots == std::string::npos) fail(expected);
       const std::string first = text.substr(0, dots), last = text.substr(dots + 2);
       const auto whole = [&](const std::string& part) {
@@ -278,13 +317,13 @@ void write_jsonl(FILE* f, const MatchEvent& e, const LabelTable& labels, const T
                "\"labels\":%s,\"query_positions\":%s,\"match_positions\":%s,"
                "\"alignment\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},",
                e.query_frame(), e.match_frame(), frames(true).c_str(), frames(false).c_str(),
-               label_list.c_str(), positions(e.query).c_str(), positions(e.match).c_str(),
-               e.alignment.x, e.alignment.y, e.alignment.yaw * kDegPerRad);
+               label_list.c_str(), positions(e.query).c_str(), positions(e.match).c_str(), e.alignment.x,
+               e.alignment.y, e.alignment.yaw * kDegPerRad);
   if (e.has_relative_pose)
-    std::fprintf(f, "\"relative_pose\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},",
-                 e.relative_pose.x, e.relative_pose.y, e.relative_pose.yaw * kDegPerRad);
-  std::fprintf(f, "\"residual_m\":%.4f,\"score\":%.4f,\"verified_candidates\":%u", e.residual_m,
-               e.score, e.verified_candidates);
+    std::fprintf(f, "\"relative_pose\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},", e.relative_pose.x,
+                 e.relative_pose.y, e.relative_pose.yaw * kDegPerRad);
+  std::fprintf(f, "\"residual_m\":%.4f,\"score\":%.4f,\"verified_candidates\":%u", e.residual_m, e.score,
+               e.verified_candidates);
   if (judge != nullptr && judge->covers(e.query_frame()) && judge->covers(e.match_frame()))
     std::fprintf(f, ",\"correct\":%s", judge->correct({e.query_frame(), e.match_frame()}) ? "true" : "false");
   std::fputs("}\n", f);
@@ -315,8 +354,7 @@ CompatProgressReport compat_progress(bool quiet) {
     next = Clock::now() + std::chrono::seconds(3);
     std::fprintf(stderr, "%s: --compat: %zu / %zu records read, %zu sequences made", program_name(),
                  p.records_read, p.records, p.sequences);
-    if (p.searched > 0)
-      std::fprintf(stderr, ", %zu / %zu complete ones searched", p.searched, p.complete);
+    if (p.searched > 0) std::fprintf(stderr, ", %zu / %zu complete ones searched", p.searched, p.complete);
     std::fprintf(stderr, ", %zu matches found\n", p.matches);
   };
 }
@@ -397,8 +435,7 @@ int replay_main(int argc, char** argv) {
     std::vector<Pose2> truth;
     if (!load_truth(o.truth, truth, error)) fail(error);
     check_covers(o.truth, truth.size(), "true pose", o, records);
-    judge = std::make_unique<TruthJudge>(std::move(truth), o.truth_radius,
-                                         o.engine.match.min_separation_m);
+    judge = std::make_unique<TruthJudge>(std::move(truth), o.truth_radius, o.engine.match.min_separation_m);
   }
   LabelTable labels;
 
@@ -439,13 +476,14 @@ int replay_main(int argc, char** argv) {
         if (!f.close(error)) tools::fail_run(error);
       }
       const auto& c = result.counters;
-      std::printf("markloop-replay: %zu detections in %zu frames -> %llu landmarks, %llu sequences "
-                  "of k=%u, %llu queries, %llu candidates (%llu too recent, %llu failed the rigid "
-                  "fit)\n",
-                  records.size(), result.frames, (unsigned long long)c.landmarks_released,
-                  (unsigned long long)c.sequences_created, k, (unsigned long long)c.queries,
-                  (unsigned long long)c.candidates, (unsigned long long)c.candidates_too_recent,
-                  (unsigned long long)c.candidates_rejected_residual);
+      std::printf(
+          "markloop-replay: %zu detections in %zu frames -> %llu landmarks, %llu sequences "
+          "of k=%u, %llu queries, %llu candidates (%llu too recent, %llu failed the rigid "
+          "fit)\n",
+          records.size(), result.frames, (unsigned long long)c.landmarks_released,
+          (unsigned long long)c.sequences_created, k, (unsigned long long)c.queries,
+          (unsigned long long)c.candidates, (unsigned long long)c.candidates_too_recent,
+          (unsigned long long)c.candidates_rejected_residual);
       if (!o.quiet) {
         for (const MatchEvent& e : result.matches) {
           std::printf("  loop: frame %u matches frame %u  [", e.query_frame(), e.match_frame());
@@ -453,8 +491,8 @@ int replay_main(int argc, char** argv) {
             std::printf("%s%s", i ? " " : "", labels.name(e.query[i].label).c_str());
           std::printf("]  residual %.3f m  score %.2f", e.residual_m, e.score);
           if (e.has_relative_pose)
-            std::printf("  relative pose (%.2f m, %.2f m, %.1f deg)", e.relative_pose.x,
-                        e.relative_pose.y, e.relative_pose.yaw * kDegPerRad);
+            std::printf("  relative pose (%.2f m, %.2f m, %.1f deg)", e.relative_pose.x, e.relative_pose.y,
+                        e.relative_pose.yaw * kDegPerRad);
           if (judge && judge->covers(e.query_frame()) && judge->covers(e.match_frame()) &&
               !judge->correct({e.query_frame(), e.match_frame()}))
             std::printf("  WRONG");
@@ -497,10 +535,12 @@ int replay_main(int argc, char** argv) {
   if (judge) {
     std::printf("\n%-22s", "Correct matches (%)");
     for (std::size_t i = 0; i < counts.size(); ++i)
-      judged[i] ? std::printf(" %6.1f", 100.0 * double(correct[i]) / double(judged[i])) : std::printf(" %6s", "-");
+      judged[i] ? std::printf(" %6.1f", 100.0 * double(correct[i]) / double(judged[i]))
+                : std::printf(" %6s", "-");
     std::printf("\n%-22s", "Incorrect matches (%)");
     for (std::size_t i = 0; i < counts.size(); ++i)
-      judged[i] ? std::printf(" %6.1f", 100.0 * double(judged[i] - correct[i]) / double(judged[i])) : std::printf(" %6s", "-");
+      judged[i] ? std::printf(" %6.1f", 100.0 * double(judged[i] - correct[i]) / double(judged[i]))
+                : std::printf(" %6s", "-");
   }
   std::printf("\n");
   if (!tools::flush_stdout(error)) tools::fail_run(error);
@@ -516,7 +556,8 @@ int main(int argc, char** argv) {
   } catch (const std::bad_alloc&) {
     // Inputs and the database are checked against their limits first: this
     // is what no check foresaw (another program took the memory meanwhile).
-    fail("out of memory: the input or the database (--landmark-capacity, --sequence-capacity) is "
-         "too large for the memory available");
+    fail(
+        "out of memory: the input or the database (--landmark-capacity, --sequence-capacity) is "
+        "too large for the memory available");
   }
 }

@@ -83,8 +83,7 @@ Label LabelTable::intern(const std::string& name) {
   return it->second;
 }
 
-bool load_markings(const std::string& path, std::vector<MarkingRecord>& records,
-                   std::string& error) {
+bool load_markings(const std::string& path, std::vector<MarkingRecord>& records, std::string& error) {
   Tokens tokens;
   if (!tokens.open(path, error)) return false;
   records.clear();
@@ -108,18 +107,28 @@ bool load_markings(const std::string& path, std::vector<MarkingRecord>& records,
     for (int field = 0; field < 5; ++field) {
       if (!tokens.next(token, line)) {
         error = tokens.where(tokens.line()) + "the file declares " + std::to_string(count) +
-                " records but ends inside record " + std::to_string(i + 1) + " (missing " +
-                kFields[field] + ")";
+                " records but ends inside record " + std::to_string(i + 1) + " (missing " + kFields[field] +
+                ")";
         return false;
       }
       if (field == 0) r.line = line;
       bool ok = true;
       switch (field) {
-        case 0: ok = parse_number(token, r.frame) && r.frame >= 0; break;
-        case 1: ok = parse_number(token, r.x); break;
-        case 2: ok = parse_number(token, r.y); break;
-        case 3: ok = parse_number(token, r.z); break;
-        default: r.label = std::string(token.substr(0, kMaxLabelLength + 1)); break;
+        case 0:
+          ok = parse_number(token, r.frame) && r.frame >= 0;
+          break;
+        case 1:
+          ok = parse_number(token, r.x);
+          break;
+        case 2:
+          ok = parse_number(token, r.y);
+          break;
+        case 3:
+          ok = parse_number(token, r.z);
+          break;
+        default:
+          r.label = std::string(token.substr(0, kMaxLabelLength + 1));
+          break;
       }
       if (field == 4 && token.size() > kMaxLabelLength) {
         error = tokens.where(line) + "record " + std::to_string(i + 1) + ": label is longer than " +
@@ -127,17 +136,17 @@ bool load_markings(const std::string& path, std::vector<MarkingRecord>& records,
         return false;
       }
       if (!ok) {
-        error = tokens.where(line) + "record " + std::to_string(i + 1) + ": " + kFields[field] +
-                " is not " + (field == 0 ? "a non-negative integer" : "a finite number") +
-                ": '" + std::string(token) + "'";
+        error = tokens.where(line) + "record " + std::to_string(i + 1) + ": " + kFields[field] + " is not " +
+                (field == 0 ? "a non-negative integer" : "a finite number") + ": '" + std::string(token) +
+                "'";
         return false;
       }
     }
     records.push_back(std::move(r));
   }
   if (tokens.next(token, line)) {
-    error = tokens.where(line) + "more data after the " + std::to_string(count) +
-            " declared records: '" + std::string(token) + "'";
+    error = tokens.where(line) + "more data after the " + std::to_string(count) + " declared records: '" +
+            std::string(token) + "'";
     return false;
   }
   return true;
@@ -161,8 +170,9 @@ bool beyond_any_road(const Pose2& p) {
 
 std::string beyond_any_road_text(const Pose2& p) {
   char text[160];
-  std::snprintf(text, sizeof text, "position (%g, %g) m lies beyond %.0f km of the origin: not a pose in metres",
-                p.x + 0.0, p.y + 0.0, kMaxPoseCoordinate_m / 1000.0);
+  std::snprintf(text, sizeof text,
+                "position (%g, %g) m lies beyond %.0f km of the origin: not a pose in metres", p.x + 0.0,
+                p.y + 0.0, kMaxPoseCoordinate_m / 1000.0);
   return text;
 }
 

@@ -52,8 +52,7 @@ inline constexpr std::size_t kMaxLabelLength = 64;
 
 // Each loader returns false and sets `error` ("FILE:LINE: what") on bad input
 // ("FILE: what" when the file cannot be read, is a directory or is too big).
-bool load_markings(const std::string& path, std::vector<MarkingRecord>& records,
-                   std::string& error);
+bool load_markings(const std::string& path, std::vector<MarkingRecord>& records, std::string& error);
 // One 3x4 row-major [R|t] camera pose per line (KITTI odometry), line i for
 // frame i, converted to the ground frame (x ahead = z, y left = -x).
 bool load_kitti_poses(const std::string& path, std::vector<Pose2>& poses, std::string& error);

@@ -30,8 +30,10 @@ std::size_t commit_frame(std::size_t seen, std::size_t frame_count, double commi
   std::size_t low = seen + 1, high = frame_count - 1;
   while (low < high) {
     const std::size_t middle = low + (high - low) / 2;
-    if (committed(middle)) high = middle;
-    else low = middle + 1;
+    if (committed(middle))
+      high = middle;
+    else
+      low = middle + 1;
   }
   return low;
 }
@@ -81,7 +83,8 @@ ReplayResult run_engine(const std::vector<MarkingRecord>& records, const std::ve
   CollectingSink sink(result.matches);
   std::vector<Observation> observations;
   std::size_t next = 0;
-  for (const std::size_t f : frames_to_feed(ordered, poses.size(), frames, config.tracker.commit_after_s, fps)) {
+  for (const std::size_t f :
+       frames_to_feed(ordered, poses.size(), frames, config.tracker.commit_after_s, fps)) {
     observations.clear();
     for (; next < ordered.size() && ordered[next]->frame == static_cast<std::int32_t>(f); ++next)
       observations.push_back(to_ground(*ordered[next], labels.intern(ordered[next]->label)));

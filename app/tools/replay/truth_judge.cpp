@@ -26,8 +26,8 @@ TruthJudge::TruthJudge(std::vector<Pose2> truth, double radius_m, double min_sep
   // earlier frames nearby.
   std::vector<double> travelled(truth_.size(), 0.0);
   for (std::size_t i = 1; i < truth_.size(); ++i)
-    travelled[i] = travelled[i - 1] +
-                   std::hypot(truth_[i].x - truth_[i - 1].x, truth_[i].y - truth_[i - 1].y);
+    travelled[i] =
+        travelled[i - 1] + std::hypot(truth_[i].x - truth_[i - 1].x, truth_[i].y - truth_[i - 1].y);
   const auto cell = [&](double v) { return static_cast<std::int64_t>(std::floor(v / radius_m_)); };
   const auto key = [](std::int64_t cx, std::int64_t cy) { return cx * 2654435761LL + cy; };
   std::unordered_map<std::int64_t, std::vector<std::size_t>> grid;
@@ -107,7 +107,8 @@ Evaluation TruthJudge::evaluate(const std::vector<FramePair>& pairs,
       continue;
     }
     ++e.correct;
-    if (const auto it = revisited.find(segment_[pair.query]); it != revisited.end()) it->second.detected = true;
+    if (const auto it = revisited.find(segment_[pair.query]); it != revisited.end())
+      it->second.detected = true;
     if (i >= relative_poses.size() || !relative_poses[i]) continue;
     const PoseError error = pose_error(pair, *relative_poses[i]);
     ++e.pose_errors;
@@ -122,8 +123,10 @@ Evaluation TruthJudge::evaluate(const std::vector<FramePair>& pairs,
   }
   for (const auto& [index, stretch] : revisited) {
     ++e.revisit_segments;
-    if (stretch.detected) ++e.revisit_segments_detected;
-    else e.missed_stretches.push_back(stretch.missed);
+    if (stretch.detected)
+      ++e.revisit_segments_detected;
+    else
+      e.missed_stretches.push_back(stretch.missed);
   }
   return e;
 }

@@ -17,9 +17,9 @@ namespace markloop::replay {
 // revisiting frames were first driven (to tell a miss of the detector from a
 // stretch whose first visit came before any sequence could exist).
 struct MissedStretch {
-  std::uint64_t index = 0;  // stretch i covers [100 i, 100 (i + 1)) m of the drive
-  std::size_t first_frame = 0, last_frame = 0;                  // its revisiting frames
-  std::size_t first_visit_from = 0, first_visit_to = 0;         // the earlier frames they revisit
+  std::uint64_t index = 0;                      // stretch i covers [100 i, 100 (i + 1)) m of the drive
+  std::size_t first_frame = 0, last_frame = 0;  // its revisiting frames
+  std::size_t first_visit_from = 0, first_visit_to = 0;  // the earlier frames they revisit
 };
 
 struct Evaluation {
@@ -72,9 +72,9 @@ class TruthJudge {
  private:
   std::vector<Pose2> truth_;
   double radius_m_;
-  std::vector<bool> revisit_;          // per frame
+  std::vector<bool> revisit_;                 // per frame
   std::vector<std::size_t> revisited_frame_;  // per revisiting frame: the earlier frame it revisits
-  std::vector<std::uint64_t> segment_;  // per frame: index of its 100 m stretch
+  std::vector<std::uint64_t> segment_;        // per frame: index of its 100 m stretch
 };
 
 }  // namespace markloop::replay

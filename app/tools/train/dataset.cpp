@@ -80,8 +80,7 @@ bool count_drive_frames(const std::string& dir, long& frames, std::string& error
 
 }  // namespace
 
-bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images,
-                      std::string& error) {
+bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images, std::string& error) {
   CsvReader csv(dir + "/annotations.csv", kMaxAnnotationBytes);
   if (!csv.read_header("image,label,x1,y1", "image,label,x1,y1,x2,y2,x3,y3,x4,y4", error)) return false;
   std::map<std::string, AnnotatedImage> by_name;

@@ -29,8 +29,7 @@ inline constexpr std::size_t kMaxDriveFileBytes = std::size_t{256} << 20;
 
 // Images in file-name order. False with `error` = "FILE:LINE: what is wrong"
 // ("FILE: what" when it cannot be read, is a directory or is too big).
-bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images,
-                      std::string& error);
+bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images, std::string& error);
 
 // A simulator drive (markloop-sim drive): DIR/visible.csv
 // (`frame,id,class,x1,y1,...,x4,y4`) as annotations of every `step`-th frame

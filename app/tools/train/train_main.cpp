@@ -33,13 +33,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app/common/cli.hpp"
-#include "app/tools/common/tool_files.hpp"
-#include "app/tools/common/still_image.hpp"
 #include "app/io/y4m.hpp"
 #include "app/perception/camera_model.hpp"
 #include "app/perception/marking_classes.hpp"
 #include "app/perception/marking_classifier.hpp"
 #include "app/perception/marking_detector.hpp"
+#include "app/tools/common/still_image.hpp"
+#include "app/tools/common/tool_files.hpp"
 #include "app/tools/train/dataset.hpp"
 #include "platform/files.hpp"
 
@@ -111,14 +111,13 @@ constexpr const char* kUsage =
 
 // The classes the targets are judged on: enough real examples to measure.
 constexpr std::array<std::string_view, 11> kMainClasses = {
-    "leftturn", "forward", "rightturn", "35",  "xing",         "ped",
-    "rail",     "bike",    "stop",      "40",  "forward&right"};
+    "leftturn", "forward", "rightturn", "35", "xing", "ped", "rail", "bike", "stop", "40", "forward&right"};
 
 struct Sample {
   Features features;
-  int label;    // class index or kRejectClass
-  int image;    // index into the images of its set
-  int clip;     // real: 60-frame block; sim: -1
+  int label;  // class index or kRejectClass
+  int image;  // index into the images of its set
+  int clip;   // real: 60-frame block; sim: -1
   bool real;
   bool augmented;               // a shifted, rotated or mirrored copy: training only
   bool clipped;                 // cut by the edge of the view: trained on, not reported...
@@ -126,7 +125,7 @@ struct Sample {
   bool beyond_region;           // centred in the view's guard band: trained on, not reported
   std::array<float, 2> centre;  // quad centre in the image, pixels
   std::array<int, 4> box;       // bird's-eye box: col0, row0, col1, row1
-  std::array<float, kPatchCols * kPatchRows> grey{};        // the patch the features came from
+  std::array<float, kPatchCols * kPatchRows> grey{};  // the patch the features came from
   std::array<std::uint8_t, kPatchCols * kPatchRows> paint{};
 };
 
@@ -166,9 +165,13 @@ void add_rotated(const MarkingDetector& detector, const Candidate& c, const Samp
     const cv::Rect paint = cv::boundingRect(mask_r(bounds) > 127);
     if (paint.width < 2 || paint.height < 2) continue;
     const cv::Rect box(bounds.x + paint.x, bounds.y + paint.y, paint.width, paint.height);
-    PatchBox patch{box.x, box.y, box.x + box.width - 1, box.y + box.height - 1,
+    PatchBox patch{box.x,
+                   box.y,
+                   box.x + box.width - 1,
+                   box.y + box.height - 1,
                    static_cast<float>(box.height) * region.x_step_m,
-                   static_cast<float>(box.width) * region.y_step_m, c.parts};
+                   static_cast<float>(box.width) * region.y_step_m,
+                   c.parts};
     Sample copy = s;
     copy.augmented = true;
     PatchScratch scratch;
@@ -238,8 +241,7 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   markloop::io::Y4mReader video;
   long video_frame = -1;
   cv::Mat video_grey(camera->height(), camera->width(), CV_8UC1);
-  if (drive && !video.open(dir + "/frames.y4m", camera->width(), camera->height()))
-    fail(video.error());
+  if (drive && !video.open(dir + "/frames.y4m", camera->width(), camera->height())) fail(video.error());
   const auto& region = config.region;
   cv::Mat mirrored_bev, mirrored_mask;  // the current image's bird's-eye view, left and right swapped
   int mirrored_for = -1;
@@ -297,8 +299,8 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
         PatchScratch scratch;
         Features again;
         compute_features(detector.birdseye_image(), detector.paint_mask(),
-                         PatchBox{c.col0, c.row0, c.col1, c.row1, c.length_m, c.width_m, c.parts},
-                         scratch, again);
+                         PatchBox{c.col0, c.row0, c.col1, c.row1, c.length_m, c.width_m, c.parts}, scratch,
+                         again);
         keep_patch(scratch, s);
         if (again != c.features) ++g_patch_mismatches;
       }
@@ -326,7 +328,9 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
                        c.row0 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(h))),
                        col1 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(w))),
                        c.row1 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(h))),
-                       c.length_m, c.width_m, c.parts};
+                       c.length_m,
+                       c.width_m,
+                       c.parts};
           box.col0 = std::clamp(box.col0, 0, bev.cols - 1);
           box.col1 = std::clamp(box.col1, box.col0, bev.cols - 1);
           box.row0 = std::clamp(box.row0, 0, bev.rows - 1);
@@ -461,7 +465,8 @@ Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& option
   for (const Sample* s : data) ++count[s->label];
   std::vector<float> class_weight(k, 0.0f);
   for (int c = 0; c < k; ++c)
-    class_weight[c] = count[c] > 0 ? std::sqrt(static_cast<float>(n) / static_cast<float>(k * count[c])) : 0.0f;
+    class_weight[c] =
+        count[c] > 0 ? std::sqrt(static_cast<float>(n) / static_cast<float>(k * count[c])) : 0.0f;
   class_weight[kRejectClass] *= options.reject_weight;
 
   std::mt19937 rng(options.seed);
@@ -605,8 +610,7 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
   }
   for (std::size_t i = 0; i < detections.size(); ++i) {
     if (predicted[i] == kRejectClass || scores[i] < min_score ||
-        (detections[i]->clipped && !detections[i]->partial) || detections[i]->beyond_region ||
-        piece[i])
+        (detections[i]->clipped && !detections[i]->partial) || detections[i]->beyond_region || piece[i])
       continue;
     const std::string label(marking_class_name(static_cast<markloop::Label>(predicted[i])));
     // The real dataset does not annotate stop lines and crosswalks: such
@@ -643,8 +647,8 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
     else
       ++score.on_nothing;
     if (list && std::getenv("MARKLOOP_TRAIN_LIST_FALSE") != nullptr)
-      std::printf("  false: %s %s %s at (%.0f, %.0f)%s\n", set.dir.c_str(), image.name.c_str(),
-                  label.c_str(), static_cast<double>(s.centre[0]), static_cast<double>(s.centre[1]),
+      std::printf("  false: %s %s %s at (%.0f, %.0f)%s\n", set.dir.c_str(), image.name.c_str(), label.c_str(),
+                  static_cast<double>(s.centre[0]), static_cast<double>(s.centre[1]),
                   s.partial ? " (partial)" : "");
   }
   for (std::size_t a = 0; a < image.annotations.size(); ++a) {
@@ -664,9 +668,8 @@ void judge(const ImageSet& set, int image_index, const std::vector<const Sample*
       }
     ++score.confusion[image.annotations[a].label + " -> " + seen];
     if (list && std::getenv("MARKLOOP_TRAIN_LIST_MISSED") != nullptr)
-      std::printf("  not found: %s %s -> %s%s%s\n", image.name.c_str(),
-                  image.annotations[a].label.c_str(), seen.c_str(), detail,
-                  image.in_range[a] ? " (in range)" : "");
+      std::printf("  not found: %s %s -> %s%s%s\n", image.name.c_str(), image.annotations[a].label.c_str(),
+                  seen.c_str(), detail, image.in_range[a] ? " (in range)" : "");
   }
 }
 
@@ -696,8 +699,8 @@ void print_operating_points(std::span<const float> thresholds, std::span<const S
 
 void print_score(const char* title, const Score& score, bool main_only_total) {
   std::printf("\n%s\n", title);
-  std::printf("%-14s %10s %7s %8s %10s %7s %9s %9s %7s %8s\n", "class", "annotated", "found",
-              "recall", "detected", "right", "precision", "in range", "found", "recall");
+  std::printf("%-14s %10s %7s %8s %10s %7s %9s %9s %7s %8s\n", "class", "annotated", "found", "recall",
+              "detected", "right", "precision", "in range", "found", "recall");
   int ta = 0, tf = 0, td = 0, tc = 0, tar = 0, tfr = 0;
   for (std::string_view name : kMarkingClassNames) {
     const std::string key(name);
@@ -705,14 +708,13 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
       const auto it = m.find(key);
       return it == m.end() ? 0 : it->second;
     };
-    const int a = get(score.annotated), f = get(score.found), d = get(score.detected),
-              c = get(score.correct), ar = get(score.annotated_in_range),
-              fr = get(score.found_in_range);
+    const int a = get(score.annotated), f = get(score.found), d = get(score.detected), c = get(score.correct),
+              ar = get(score.annotated_in_range), fr = get(score.found_in_range);
     if (a == 0 && d == 0) continue;
     const bool main = is_main_class(name);
     std::printf("%-14s %10d %7d %7.1f%% %10d %7d %8.1f%% %9d %7d %7.1f%%%s\n", key.c_str(), a, f,
-                a ? 100.0 * f / a : 0.0, d, c, d ? 100.0 * c / d : 0.0, ar, fr,
-                ar ? 100.0 * fr / ar : 0.0, main_only_total && !main ? "  (not a main class)" : "");
+                a ? 100.0 * f / a : 0.0, d, c, d ? 100.0 * c / d : 0.0, ar, fr, ar ? 100.0 * fr / ar : 0.0,
+                main_only_total && !main ? "  (not a main class)" : "");
     if (!main_only_total || main) {
       ta += a;
       tf += f;
@@ -727,9 +729,11 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
               td ? 100.0 * tc / td : 0.0, tar, tfr, tar ? 100.0 * tfr / tar : 0.0);
   std::printf("duplicates %d, wrong label %d, detections on no marking %d%s\n", score.duplicates,
               score.wrong_label, score.on_nothing,
-              score.unjudged ? (", stop line/crosswalk (not annotated) " + std::to_string(score.unjudged)).c_str() : "");
-  std::printf("reported cut by the view's near edge (partial): %d right, %d wrong\n",
-              score.partial_right, score.partial_wrong);
+              score.unjudged
+                  ? (", stop line/crosswalk (not annotated) " + std::to_string(score.unjudged)).c_str()
+                  : "");
+  std::printf("reported cut by the view's near edge (partial): %d right, %d wrong\n", score.partial_right,
+              score.partial_wrong);
   if (std::getenv("MARKLOOP_TRAIN_SHOW_MISSES") != nullptr)
     for (const auto& [what, n] : score.confusion) std::printf("  missed: %-30s %d\n", what.c_str(), n);
 }
@@ -738,9 +742,8 @@ void print_score(const char* title, const Score& score, bool main_only_total) {
 // each score threshold: scores[t] gets the judgement at min_scores[t].
 using ClassifySample = std::function<int(const Sample&, std::array<float, kClassifierOutputs>&)>;
 
-void evaluate(const ImageSet& set, const ClassifySample& classify_sample,
-              const std::vector<bool>& use_image, std::span<const float> min_scores,
-              std::span<Score> scores) {
+void evaluate(const ImageSet& set, const ClassifySample& classify_sample, const std::vector<bool>& use_image,
+              std::span<const float> min_scores, std::span<Score> scores) {
   std::vector<std::vector<const Sample*>> per_image(set.images.size());
   for (const Sample& s : set.samples)
     if (!s.augmented) per_image[s.image].push_back(&s);
@@ -773,8 +776,8 @@ void evaluate(const ImageSet& set, const ClassifySample& classify_sample,
   for (std::size_t t = 0; t < min_scores.size(); ++t)
     for (std::size_t i = 0; i < set.images.size(); ++i)
       if (use_image[i])
-        judge(set, static_cast<int>(i), per_image[i], predicted[i], piece[i], min_scores[t],
-              confidence[i], t == 0, scores[t]);
+        judge(set, static_cast<int>(i), per_image[i], predicted[i], piece[i], min_scores[t], confidence[i],
+              t == 0, scores[t]);
 }
 
 ClassifySample by_model(const MlpModel& model) {
@@ -788,8 +791,8 @@ void evaluate(const ImageSet& set, const MlpModel& model, const std::vector<bool
   evaluate(set, by_model(model), use_image, min_scores, scores);
 }
 
-void evaluate(const ImageSet& set, const ClassifySample& classify_sample,
-              const std::vector<bool>& use_image, float min_score, Score& score) {
+void evaluate(const ImageSet& set, const ClassifySample& classify_sample, const std::vector<bool>& use_image,
+              float min_score, Score& score) {
   evaluate(set, classify_sample, use_image, std::span(&min_score, 1), std::span(&score, 1));
 }
 
@@ -820,8 +823,8 @@ void dump_set(const ImageSet& set, const std::string& prefix, int folds) {
   std::vector<float> features, grey;
   std::vector<std::uint8_t> paint;
   for (const Sample& s : set.samples) {
-    meta.insert(meta.end(), {s.label, s.image, s.clip, s.real ? fold_of(s.clip, folds) : -1,
-                             s.real ? 1 : 0, s.augmented ? 1 : 0,
+    meta.insert(meta.end(), {s.label, s.image, s.clip, s.real ? fold_of(s.clip, folds) : -1, s.real ? 1 : 0,
+                             s.augmented ? 1 : 0,
                              (s.clipped ? 1 : 0) | (s.partial ? 2 : 0) | (s.beyond_region ? 4 : 0), 0});
     features.insert(features.end(), s.features.begin(), s.features.end());
     grey.insert(grey.end(), s.grey.begin(), s.grey.end());
@@ -835,12 +838,12 @@ void dump_set(const ImageSet& set, const std::string& prefix, int folds) {
 
 void read_probabilities(const ImageSet& set, const std::string& path, std::vector<float>& out) {
   const std::size_t expected = set.samples.size() * kClassifierOutputs * sizeof(float);
-  const std::string whose =
-      " (" + std::to_string(set.samples.size()) + " candidates of " + set.dir + ")";
+  const std::string whose = " (" + std::to_string(set.samples.size()) + " candidates of " + set.dir + ")";
   std::string bytes;
   if (const std::error_code ec = markloop::platform::read_file_bounded(path.c_str(), expected, bytes)) {
     if (ec == std::errc::file_too_large)
-      fail(path + ": more than " + std::to_string(expected) + " bytes, expected " + std::to_string(expected) + whose);
+      fail(path + ": more than " + std::to_string(expected) + " bytes, expected " + std::to_string(expected) +
+           whose);
     if (ec == std::errc::is_a_directory) fail(path + ": is a directory, not a probabilities file");
     fail(path + ": cannot open: " + ec.message());
   }
@@ -854,8 +857,8 @@ void read_probabilities(const ImageSet& set, const std::string& path, std::vecto
 ClassifySample by_probabilities(const ImageSet& set, const std::vector<float>& values) {
   return [&set, &values](const Sample& s, std::array<float, kClassifierOutputs>& p) {
     const auto index = static_cast<std::size_t>(&s - set.samples.data());
-    std::copy_n(values.begin() + static_cast<std::ptrdiff_t>(index * kClassifierOutputs),
-                kClassifierOutputs, p.begin());
+    std::copy_n(values.begin() + static_cast<std::ptrdiff_t>(index * kClassifierOutputs), kClassifierOutputs,
+                p.begin());
     return static_cast<int>(std::max_element(p.begin(), p.end()) - p.begin());
   };
 }
@@ -903,8 +906,8 @@ void print_coverage(const ImageSet& set) {
 // arithmetic follows the compiler's flags (CMakeLists.txt beside this file).
 constexpr const char* kBuild = MARKLOOP_TRAIN_BUILD_DIR;
 
-void write_model(const std::vector<Mlp>& members, const std::string& path,
-                 const std::string& command, std::size_t samples) {
+void write_model(const std::vector<Mlp>& members, const std::string& path, const std::string& command,
+                 std::size_t samples) {
   const Mlp& first = members.front();
   markloop::tools::OutputFile file;
   std::string error;
@@ -919,8 +922,7 @@ void write_model(const std::vector<Mlp>& members, const std::string& path,
                "// %zu training candidates; %zu networks of %d inputs, %d hidden units (ReLU),\n"
                "// %d outputs (the marking classes of marking_classes.hpp, then reject).\n"
                "// Hexadecimal floats: the trained values exactly.\n",
-               kBuild, command.c_str(), samples, members.size(), first.inputs, first.hidden,
-               first.outputs);
+               kBuild, command.c_str(), samples, members.size(), first.inputs, first.hidden, first.outputs);
   std::fprintf(f,
                "#include \"perception/marking_classifier.hpp\"\n\n"
                "namespace markloop::perception {\nnamespace {\n\n"
@@ -980,8 +982,8 @@ int train_main(int argc, char** argv) {
     const char* value = markloop::cli::option_value(
         argc, argv, i,
         {"--real", "--real-camera", "--sim", "--sim-test", "--sim-drive", "--sim-drive-train", "--folds",
-         "--seed", "--epochs", "--members", "--hidden", "--real-weight", "--reject-weight",
-         "--weight-decay", "--weight-average", "--out", "--dump", "--scores"});
+         "--seed", "--epochs", "--members", "--hidden", "--real-weight", "--reject-weight", "--weight-decay",
+         "--weight-average", "--out", "--dump", "--scores"});
     command += " " + arg + " " + value;
     if (arg == "--real")
       real_dir = value;
@@ -1022,8 +1024,8 @@ int train_main(int argc, char** argv) {
   }
   if (!scores_dirs.empty() && (evaluate_builtin || !dump_dir.empty() || !out.empty()))
     fail("--scores judges given probabilities: not with --evaluate-builtin, --dump or --out");
-  if (evaluate_builtin && (!sim_dirs.empty() || !sim_drive_train_dirs.empty() || !out.empty() ||
-                           !dump_dir.empty()))
+  if (evaluate_builtin &&
+      (!sim_dirs.empty() || !sim_drive_train_dirs.empty() || !out.empty() || !dump_dir.empty()))
     fail("--evaluate-builtin trains nothing: give only --real, --real-camera, --sim-test and --sim-drive");
   if (evaluate_builtin && real_dir.empty() && sim_test_dirs.empty() && sim_drive_dirs.empty())
     fail("--evaluate-builtin: nothing to judge: give --real, --sim-test or --sim-drive");
@@ -1039,14 +1041,12 @@ int train_main(int argc, char** argv) {
 
   std::vector<ImageSet> sets;
   if (!real_dir.empty()) {
-    sets.push_back(
-        extract(real_dir, real_camera, true, evaluate_builtin ? Use::kEvaluate : Use::kTrain));
+    sets.push_back(extract(real_dir, real_camera, true, evaluate_builtin ? Use::kEvaluate : Use::kTrain));
     for (const auto& image : sets.front().images) g_clips.push_back(train::clip_of(image.name));
     std::sort(g_clips.begin(), g_clips.end());
     g_clips.erase(std::unique(g_clips.begin(), g_clips.end()), g_clips.end());
   }
-  for (const auto& dir : sim_dirs)
-    sets.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain));
+  for (const auto& dir : sim_dirs) sets.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain));
   for (const auto& dir : sim_drive_train_dirs)
     sets.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain, true));
   std::vector<ImageSet> tests;
@@ -1117,8 +1117,8 @@ int train_main(int argc, char** argv) {
         blend_with_networks(sample, networks, defaults.cnn_share);
         std::copy(sample.begin(), sample.end(), blended.begin() + static_cast<std::ptrdiff_t>(at));
       }
-      evaluate(set, by_probabilities(set, blended), std::vector<bool>(set.images.size(), true),
-               thresholds, by_threshold);
+      evaluate(set, by_probabilities(set, blended), std::vector<bool>(set.images.size(), true), thresholds,
+               by_threshold);
     };
     if (!real_dir.empty()) {
       const std::vector<float> thresholds = {min_score, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
@@ -1188,7 +1188,8 @@ int train_main(int argc, char** argv) {
             [&](const Sample& s) { return !s.augmented && fold_of(s.clip, folds) == fold; },
             fold_probabilities);
         if (cv_probabilities.empty()) cv_probabilities.assign(fold_probabilities.size(), 0.0f);
-        for (std::size_t i = 0; i < fold_probabilities.size(); ++i) cv_probabilities[i] += fold_probabilities[i];
+        for (std::size_t i = 0; i < fold_probabilities.size(); ++i)
+          cv_probabilities[i] += fold_probabilities[i];
       }
       std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
     }
@@ -1209,8 +1210,8 @@ int train_main(int argc, char** argv) {
   judge_tests(by_model(view(members)));
   for (std::size_t k = 0; k < tests.size() && !dump_dir.empty(); ++k) {
     std::vector<float> test_probabilities;
-    write_probabilities(tests[k], by_model(view(members)), [](const Sample&) { return true; },
-                        test_probabilities);
+    write_probabilities(
+        tests[k], by_model(view(members)), [](const Sample&) { return true; }, test_probabilities);
     write_raw(dump_dir + "/mlp/test" + std::to_string(k) + ".probs.f32", test_probabilities);
   }
   if (!out.empty()) {
