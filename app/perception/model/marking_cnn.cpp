@@ -4,7 +4,7 @@
 //   app/perception/train/train_cnn.py build/train-data/candidates --seeds 1,2 --folds all --threads 2 --out app/perception/model/marking_cnn.cpp
 // 190886 training candidates; 2 networks of marking_classifier.hpp (CnnModel).
 // Hexadecimal floats: the trained values exactly.
-#include "perception/marking_classifier.hpp"
+#include "app/perception/marking_classifier.hpp"
 
 namespace markloop::perception {
 namespace {

@@ -6,7 +6,7 @@
 // 190886 training candidates; 3 networks of 390 inputs, 128 hidden units (ReLU),
 // 17 outputs (the marking classes of marking_classes.hpp, then reject).
 // Hexadecimal floats: the trained values exactly.
-#include "perception/marking_classifier.hpp"
+#include "app/perception/marking_classifier.hpp"
 
 namespace markloop::perception {
 namespace {
