@@ -1,6 +1,5 @@
 // markloop: the ECU program. See --help and markloop.conf.
 #include <cstdio>
-#include <cstring>
 #include <new>
 #include <string>
 #include <string_view>
