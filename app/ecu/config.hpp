@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 
+#include "app/common/result.hpp"
 #include "app/engine/config.hpp"
 #include "app/engine/types.hpp"
 
@@ -42,30 +43,23 @@ struct RealtimeSettings {
 
 // Which detections become observations for the engine (all are reported in
 // the detections CSV): markings cut by the image border (near, far) are
-// placed poorly, and low classifier confidence is mostly clutter. The score
-// gate suits the model's calibration: lower lets false loops through on the
-// simulated drives, higher starves the cross-session confirmation
-// (docs/decisions.md). The gate may not lie below the detector's own
-// threshold (detector_min_score): nothing under it is detected, and main()
-// refuses it.
+// placed poorly, and low classifier confidence is mostly clutter. Why the
+// score gate has its value: docs/decisions.md. main() refuses a gate below
+// the detector's own threshold (detector_min_score): nothing under it is
+// detected.
 struct ObservationGate {
   float min_score = 0.6f;
   float min_range_m = 5.5f;  // ahead of the vehicle reference point
   float max_range_m = 16.0f;
 };
 
-// The engine's settings in the car:
-// - a landmark needs 3 sightings (the engine's default of 2 suits cleaner
-//   inputs such as the paper's data): single-frame clutter stays out;
-// - the odometry prior rejects look-alike places: within a session two
-//   visits may lie apart by at most 5 m + 2 % of the distance driven in
-//   between; places of a loaded map count once a second match confirms how
-//   the two sessions' frames relate;
-// - a match whose landmarks, aligned, still disagree by more than 0.3 m RMS
-//   is not sent: its relative pose would be no better than that.
-// k stays 4: at k = 3 a single session finds more loops, but across sessions
-// (a loaded map, no odometry prior) look-alike city blocks then confirm
-// wrong alignments (docs/decisions.md).
+// The engine's settings in the car, where they differ from the engine's own
+// defaults (why: the descriptions in settings.cpp and docs/decisions.md):
+// more sightings keep single-frame clutter out, the odometry prior and the
+// frame distance reject look-alike places, loaded places need confirming,
+// and a loose match would give a poor relative pose. k stays at the
+// engine's: shorter sequences let look-alike city blocks confirm wrong
+// alignments across sessions.
 inline EngineConfig ecu_engine_defaults() {
   EngineConfig c;
   c.tracker.min_observations = 3;
@@ -99,20 +93,25 @@ struct EcuConfig {
   bool file_mode() const { return !camera.file.empty(); }
 };
 
-// Sets one key from its text value. Returns an empty string, or what is wrong.
-std::string set_config_value(EcuConfig& config, std::string_view key, std::string_view value);
+// Sets one key from its text value (keys, ranges: settings.hpp), or says
+// what is wrong ("KEY: what", "unknown key 'KEY'").
+Status set_config_value(EcuConfig& config, std::string_view key, std::string_view value);
 
 // Larger files are no configuration (the shipped one is a few kB).
 inline constexpr std::size_t kMaxConfigFileBytes = std::size_t{1} << 20;
 
 // Reads a key = value file ('#' starts a comment, blank lines ignored) into
-// `config`. Returns an empty string, or "FILE:LINE: what is wrong".
-std::string load_config_file(const std::string& path, EcuConfig& config);
+// `config`, or says "FILE:LINE: what is wrong".
+Status load_config_file(const std::string& path, EcuConfig& config);
 
-// Checks the combination (files vs devices, engine limits). Empty when usable.
-std::string validate_config(const EcuConfig& config);
+// Checks the combination (files vs devices, engine limits) and says what is
+// wrong when it is not usable.
+Status validate_config(const EcuConfig& config);
 
 // Every key with its current value, one "key = value" per line (for --print-config).
 std::string format_config(const EcuConfig& config);
+
+// One key's current value as format_config() prints it; empty for an unknown key.
+std::string format_config_value(const EcuConfig& config, std::string_view key);
 
 }  // namespace markloop::ecu

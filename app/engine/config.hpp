@@ -4,7 +4,18 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "app/engine/types.hpp"
+
 namespace markloop {
+
+// Limits of the engine's own, which validate() enforces. The ECU's settings
+// table (app/ecu/settings.cpp) takes its ranges for these settings from
+// here; its other ranges lie within validate()'s (tests/ecu/test_settings.cpp).
+inline constexpr unsigned kMinSequenceLength = 2;  // kMaxSequenceLength: types.hpp
+inline constexpr unsigned kMaxSkippedRows = 1;
+inline constexpr double kMaxDistanceToleranceRel = 0.1;
+inline constexpr std::size_t kMinDatabaseCapacity = 16;
+inline constexpr std::size_t kMaxDatabaseCapacity = std::size_t{1} << 30;
 
 struct TrackerConfig {
   // An observation joins an active track whose mean position is this close.

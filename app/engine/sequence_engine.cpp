@@ -27,8 +27,12 @@ std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& q
 const char* validate(const EngineConfig& c) {
   const auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   const auto finite_non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
-  if (c.chain.k < 2 || c.chain.k > kMaxSequenceLength) return "k must be between 2 and 10";
-  if (c.chain.max_skipped_rows > 1) return "rows skipped must be 0 or 1";
+  // The messages name the limits of app/engine/config.hpp.
+  static_assert(kMinSequenceLength == 2 && kMaxSequenceLength == 10 && kMaxSkippedRows == 1);
+  static_assert(kMaxDistanceToleranceRel == 0.1 && kMinDatabaseCapacity == 16);
+  static_assert(kMaxDatabaseCapacity == std::size_t{1} << 30);
+  if (c.chain.k < kMinSequenceLength || c.chain.k > kMaxSequenceLength) return "k must be between 2 and 10";
+  if (c.chain.max_skipped_rows > kMaxSkippedRows) return "rows skipped must be 0 or 1";
   if (!finite_positive(c.tracker.association_radius_m))
     return "association radius must be a positive number of metres";
   if (!finite_positive(c.tracker.commit_after_s)) return "commit delay must be a positive number of seconds";
@@ -41,7 +45,7 @@ const char* validate(const EngineConfig& c) {
   if (!finite_positive(c.match.distance_tolerance_abs_m))
     return "absolute distance tolerance must be a positive number of metres";
   if (!std::isfinite(c.match.distance_tolerance_rel) || c.match.distance_tolerance_rel < 0.0 ||
-      c.match.distance_tolerance_rel > 0.1)
+      c.match.distance_tolerance_rel > kMaxDistanceToleranceRel)
     return "relative distance tolerance must be between 0 and 0.1";
   if (!finite_non_negative(c.match.min_separation_m) || !finite_non_negative(c.match.min_separation_s))
     return "minimum separation must be non-negative";
@@ -58,9 +62,11 @@ const char* validate(const EngineConfig& c) {
   if (!finite_non_negative(c.match.max_frame_distance_m)) return "frame distance limit must be non-negative";
   if (!finite_non_negative(c.match.confirm_within_m) || !finite_non_negative(c.match.confirm_min_gap_m))
     return "confirmation distances must be non-negative";
-  if (c.database.landmark_capacity < 16 || c.database.landmark_capacity > (std::size_t{1} << 30))
+  if (c.database.landmark_capacity < kMinDatabaseCapacity ||
+      c.database.landmark_capacity > kMaxDatabaseCapacity)
     return "landmark capacity must be between 16 and 2^30";
-  if (c.database.sequence_capacity < 16 || c.database.sequence_capacity > (std::size_t{1} << 30))
+  if (c.database.sequence_capacity < kMinDatabaseCapacity ||
+      c.database.sequence_capacity > kMaxDatabaseCapacity)
     return "sequence capacity must be between 16 and 2^30";
   return nullptr;
 }

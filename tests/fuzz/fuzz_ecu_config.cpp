@@ -14,17 +14,17 @@ using markloop::ecu::EcuConfig;
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const markloop::fuzz::InputFile file(data, size, ".conf");
   EcuConfig config;
-  const std::string error = markloop::ecu::load_config_file(file.path(), config);
-  if (!error.empty()) {
-    if (error.rfind(file.path() + ":", 0) != 0) std::abort();  // errors name the file
+  const markloop::Status loaded = markloop::ecu::load_config_file(file.path(), config);
+  if (!loaded) {
+    if (loaded.message().rfind(file.path() + ":", 0) != 0) std::abort();  // errors name the file
     return 0;
   }
-  if (!markloop::ecu::validate_config(config).empty()) return 0;
+  if (!markloop::ecu::validate_config(config)) return 0;
   const std::string printed = markloop::ecu::format_config(config);
   const markloop::fuzz::InputFile again_file(reinterpret_cast<const std::uint8_t*>(printed.data()),
                                              printed.size(), ".printed.conf");
   EcuConfig again;
-  if (!markloop::ecu::load_config_file(again_file.path(), again).empty()) std::abort();
+  if (!markloop::ecu::load_config_file(again_file.path(), again)) std::abort();
   if (markloop::ecu::format_config(again) != printed) std::abort();
   return 0;
 }
