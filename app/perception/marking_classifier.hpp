@@ -3,8 +3,9 @@
 // class plus an explicit reject class ("not a marking": lane-line pieces,
 // cracks, shadows, vehicles, glare). The members are trained alike from
 // different random starts and their probabilities averaged: on a clip unlike
-// any trained on, they err in different places. Weights live in a generated
-// source file (model/marking_model.cpp, written by markloop-train).
+// any trained on, they err in different places. The weights are in
+// model/marking_mlp.bin (written by markloop-train), compiled in at build
+// time (model/README.md).
 #pragma once
 
 #include <algorithm>
@@ -113,7 +114,7 @@ struct CnnModel {
   std::array<CnnNet, kMaxCnnMembers> nets{};
 };
 
-// The networks compiled into the program (model/marking_cnn.cpp).
+// The networks compiled into the program (model/marking_cnn.bin).
 const CnnModel& builtin_marking_cnn();
 
 bool cnn_is_usable(const CnnNet& cnn);

@@ -1,13 +1,19 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
 #include <random>
+#include <span>
+#include <string>
 #include <vector>
 
 #include <catch2/catch_approx.hpp>
 #include <catch2/catch_test_macros.hpp>
 
 #include "app/perception/marking_classifier.hpp"
+#include "app/perception/model/model_file.hpp"
 
 using namespace markloop::perception;
 
@@ -191,4 +197,114 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   // No network, or share 0: the MLPs alone.
   classify(builtin_marking_model(), nullptr, 0.5f, kAlwaysRun, features, patch, scratch, blended);
   CHECK(blended == from_mlps);
+}
+
+namespace {
+
+namespace model_file = markloop::perception::model_file;
+
+void append(std::vector<float>& to, const float* from, int count) {
+  for (const float v : std::span(from, static_cast<std::size_t>(count))) to.push_back(v);
+}
+
+// The compiled-in weights in the model files' order (README.md in
+// app/perception/model).
+std::vector<float> compiled_in_mlp() {
+  const MlpModel& model = builtin_marking_model();
+  std::vector<float> values;
+  for (int m = 0; m < model.members; ++m) {
+    const MlpNet& n = model.nets[static_cast<std::size_t>(m)];
+    append(values, n.feature_mean, n.inputs);
+    append(values, n.feature_inv_std, n.inputs);
+    append(values, n.w1, n.hidden * n.inputs);
+    append(values, n.b1, n.hidden);
+    append(values, n.w2, n.outputs * n.hidden);
+    append(values, n.b2, n.outputs);
+  }
+  return values;
+}
+
+std::vector<float> compiled_in_cnn() {
+  const CnnModel& model = builtin_marking_cnn();
+  std::vector<float> values;
+  append(values, model.nets[0].shape_mean, kShapeFeatures);
+  append(values, model.nets[0].shape_inv_std, kShapeFeatures);
+  for (int m = 0; m < model.members; ++m) {
+    const CnnNet& n = model.nets[static_cast<std::size_t>(m)];
+    append(values, n.conv1_w, kCnnChannels1 * kCnnInputChannels * 9);
+    append(values, n.conv1_b, kCnnChannels1);
+    append(values, n.conv2_w, kCnnChannels2 * kCnnChannels1 * 9);
+    append(values, n.conv2_b, kCnnChannels2);
+    append(values, n.conv3_w, kCnnChannels3 * kCnnChannels2 * 9);
+    append(values, n.conv3_b, kCnnChannels3);
+    append(values, n.fc1_w, kCnnHidden * kCnnHeadInputs);
+    append(values, n.fc1_b, kCnnHidden);
+    append(values, n.fc2_w, kClassifierOutputs * kCnnHidden);
+    append(values, n.fc2_b, kClassifierOutputs);
+  }
+  return values;
+}
+
+std::string read_model_file(const std::string& name) {
+  std::ifstream in(std::string(MARKLOOP_SOURCE_DIR) + "/app/perception/model/" + name, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+bool same_bits(std::span<const std::byte> payload, const std::vector<float>& values) {
+  return payload.size() == values.size() * sizeof(float) &&
+         std::memcmp(payload.data(), values.data(), payload.size()) == 0;
+}
+
+}  // namespace
+
+TEST_CASE("the compiled-in weights are the repository's model, bit for bit") {
+  // The CRC-32 of the weights in file order: the one in the header of
+  // marking_mlp.bin and marking_cnn.bin. A retrained model changes it.
+  CHECK(model_file::payload_crc(compiled_in_mlp()) == 0x2c08b28cU);
+  CHECK(model_file::payload_crc(compiled_in_cnn()) == 0x4b67e125U);
+}
+
+TEST_CASE("the compiled-in weights are the model files' payload") {
+  const std::string mlp_bytes = read_model_file("marking_mlp.bin");
+  const auto mlp = model_file::decode(mlp_bytes, "marking_mlp.bin");
+  REQUIRE(mlp.ok());
+  CHECK(mlp->header.kind == model_file::Kind::kMlp);
+  CHECK(static_cast<int>(mlp->header.members) == builtin_marking_model().members);
+  CHECK(static_cast<int>(mlp->header.shape[0]) == kFeatureCount);
+  CHECK(static_cast<int>(mlp->header.shape[2]) == kClassifierOutputs);
+  CHECK(same_bits(mlp->payload, compiled_in_mlp()));
+
+  const std::string cnn_bytes = read_model_file("marking_cnn.bin");
+  const auto cnn = model_file::decode(cnn_bytes, "marking_cnn.bin");
+  REQUIRE(cnn.ok());
+  CHECK(cnn->header.kind == model_file::Kind::kCnn);
+  CHECK(static_cast<int>(cnn->header.members) == builtin_marking_cnn().members);
+  CHECK(same_bits(cnn->payload, compiled_in_cnn()));
+}
+
+TEST_CASE("a model file is refused when damaged, saying why") {
+  const std::vector<float> values = {1.0f, -0.0f, 0x1.fffffep127f, 1e-40f};
+  const std::string good = model_file::encode(model_file::Kind::kMlp, 1, {1, 1, 1}, values);
+  REQUIRE(good.size() == 64 + 4 * values.size());
+  const auto decoded = model_file::decode(good, "m.bin");
+  REQUIRE(decoded.ok());
+  CHECK(same_bits(decoded->payload, values));
+  CHECK(decoded->header.crc32 == model_file::payload_crc(values));
+
+  std::string flipped = good;
+  flipped[70] = static_cast<char>(flipped[70] ^ 1);
+  const auto damaged = model_file::decode(flipped, "m.bin");
+  REQUIRE_FALSE(damaged.ok());
+  CHECK(damaged.message() == "m.bin: the payload's CRC-32 does not match the header's: the file is damaged");
+  const auto short_file = model_file::decode(std::string_view(good).substr(0, good.size() - 1), "m.bin");
+  REQUIRE_FALSE(short_file.ok());
+  CHECK(short_file.message() == "m.bin: 79 bytes, the header gives 80");
+  std::string other = good;
+  other[0] = 'X';
+  CHECK(model_file::decode(other, "m.bin").message() == "m.bin: not a markloop model file");
+  other = good;
+  other[4] = 2;
+  CHECK(model_file::decode(other, "m.bin").message() == "m.bin: format version 2, expected 1");
+  CHECK(model_file::decode(good.substr(0, 10), "m.bin").message() ==
+        "m.bin: 10 bytes, shorter than the 64-byte header");
 }

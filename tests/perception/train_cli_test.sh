@@ -44,6 +44,16 @@ check "image is a directory" 2 "999999.png: is a directory, not an image" -- \
 printf '50000000,0,stop,1,2,3,4,5,6,7,8\n' >>"$work/drive/visible.csv"
 check "drive frame beyond the drive" 2 "visible.csv:[0-9]+: frame 50000000 is beyond the drive's 10 frames \(frames.csv\)" -- \
   timeout 20 "$train" --evaluate-builtin --sim-drive "$work/drive"
+# The model file and its notes, and the build's check accepts the file.
+check "model file written" 0 "wrote $work/model.bin" -- \
+  "$train" --sim "$work/set" --folds 0 --epochs 1 --members 1 --hidden 4 --out "$work/model.bin"
+check "model notes" 0 "^Payload CRC-32 0x[0-9a-f]{8}\.$" -- cat "$work/model.txt"
+generator="$scripts/../../perception/model/model_file.py"
+check "model file checked as the build does" 0 "^// GENERATED from .*model.bin" -- \
+  sh -c 'python3 "$1" --kind mlp "$2/model.bin" "$2/model.cpp" && head -1 "$2/model.cpp"' - "$generator" "$work"
+printf 'X' | dd of="$work/model.bin" bs=1 seek=100 conv=notrunc 2>/dev/null
+check "damaged model file refused" 1 "model.bin: payload CRC-32 0x[0-9a-f]{8} does not match" -- \
+  python3 "$generator" --kind mlp "$work/model.bin" "$work/model.cpp"
 check "model on a full disk" 1 "^markloop-train: /dev/full: cannot write: No space left on device" -- \
   "$train" --sim "$work/set" --folds 0 --epochs 1 --members 1 --hidden 4 --out /dev/full
 check "dump into a file" 1 "^markloop-train: $work/file/mlp: cannot create the directory" -- \

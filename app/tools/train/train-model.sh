@@ -1,7 +1,9 @@
 #!/bin/sh
-# Regenerates the marking classifier, app/perception/model/marking_model.cpp
-# (the MLPs, markloop-train) and app/perception/model/marking_cnn.cpp (the
-# convolutional network, train_cnn.py: needs python3-torch), and prints
+# Regenerates the marking classifier, app/perception/model/marking_mlp.bin
+# (the MLPs, markloop-train) and app/perception/model/marking_cnn.bin (the
+# convolutional networks, train_cnn.py: needs python3-torch), each with a
+# .txt beside it saying how it was trained (format:
+# app/perception/model/README.md; the build compiles them in), and prints
 # their evaluation, then the blend's (the detector's). Run from the repository
 # root after `bash .ci/setup train` (PyTorch, and the preset train: markloop-train
 # with AVX2 and FMA, x86-64-v3: the model in the repository came from that
@@ -78,13 +80,13 @@ DUMP=$DATA/candidates
 # shellcheck disable=SC2086  # $sims, $TESTS and $RECIPE are lists of options
 "$TRAIN" --real "$REAL" --real-camera app/cameras/honda.yaml $sims \
   --sim-drive-train "$DATA/drive-figure8-21" $TESTS $RECIPE \
-  --out app/perception/model/marking_model.cpp --dump "$DUMP"
+  --out app/perception/model/marking_mlp.bin --dump "$DUMP"
 CNN="$PYTHON app/tools/train/train_cnn.py $DUMP --seeds $CNN_SEEDS"
 rm -rf "$DUMP"/cnn
 $CNN --folds 0,1 & first=$!
 $CNN --folds 2,3 & second=$!
 wait $first && wait $second
-$CNN --folds all --threads 2 --out app/perception/model/marking_cnn.cpp
+$CNN --folds all --threads 2 --out app/perception/model/marking_cnn.bin
 echo "The MLPs blended with the networks (their geometric mean, as the detector classifies):"
 scores="--scores $DUMP/mlp"
 for seed in $(echo "$CNN_SEEDS" | tr , ' '); do scores="$scores --scores $DUMP/cnn/seed$seed"; done

@@ -1,6 +1,7 @@
 // markloop-train: trains the marking classifier on the detector's own
 // candidates in annotated images (real and simulated), evaluates it on
-// clips held apart, and writes the model as a C++ source file.
+// clips held apart, and writes the model as a model file
+// (app/perception/model/README.md).
 //
 // Every candidate the detector proposes in a training image is labelled by
 // the annotation whose quadrilateral contains its centre (the class), or
@@ -38,6 +39,7 @@
 #include "app/perception/marking_classes.hpp"
 #include "app/perception/marking_classifier.hpp"
 #include "app/perception/marking_detector.hpp"
+#include "app/perception/model/model_file.hpp"
 #include "app/tools/common/still_image.hpp"
 #include "app/tools/common/tool_files.hpp"
 #include "app/tools/train/dataset.hpp"
@@ -48,55 +50,69 @@ namespace {
 using namespace markloop::perception;
 using markloop::cli::fail;
 
-constexpr const char* kUsage =
+constexpr const char* kUsageHead =
     "usage: markloop-train --real DIR --real-camera FILE [--sim DIR]... [--sim-drive-train DIR]...\n"
     "                      [--sim-test DIR]... [--sim-drive DIR]...\n"
     "                      [--folds N] [--seed N] [--members N] [--epochs N] [--hidden N]\n"
-    "                      [--out FILE.cpp] [--dump DIR]\n"
+    "                      [--out FILE.bin] [--dump DIR]\n"
     "       markloop-train --real DIR --real-camera FILE [--sim-test DIR]... [--sim-drive DIR]...\n"
     "                      --scores DIR [--scores DIR]...\n"
     "       markloop-train --evaluate-builtin [--real DIR --real-camera FILE]\n"
     "                      [--sim-test DIR]... [--sim-drive DIR]...\n"
     "\n"
     "Trains the road-marking classifier on the detector's candidates in annotated\n"
-    "images and writes it as C++ source (app/perception/model/marking_model.cpp).\n"
-    "\n"
-    "  --real DIR          real images: DIR/annotations.csv + DIR/images/ (roadmarks-honda)\n"
-    "  --real-camera FILE  calibration (and detector region) of the real camera\n"
-    "  --sim DIR           simulator training set (markloop-sim training-set), with\n"
-    "                      DIR/camera.yaml; repeatable\n"
-    "  --sim-test DIR      simulator set held apart: only evaluated; repeatable\n"
-    "  --sim-drive DIR     simulator drive (markloop-sim drive: visible.csv, frames.y4m)\n"
-    "                      held apart: every 5th frame evaluated; repeatable\n"
-    "  --sim-drive-train DIR  simulator drive trained on (every 5th frame); repeatable\n"
-    "  --folds N           cross-validation by clip on the real images (default 4; 0: none):\n"
-    "                      clip c (60-frame block) is validated in fold c mod N by a model\n"
-    "                      trained without it\n"
-    "  --seed N            random seed (default 1)\n"
-    "  --members N         networks in the ensemble, 1..4 (default 3): trained alike\n"
-    "                      from seeds S, S+100, ... (S: --seed); probabilities averaged\n"
-    "  --epochs N          training epochs (default 60)\n"
-    "  --hidden N          hidden units (default 64)\n"
-    "  --reject-weight W   factor on the reject class's loss weight (default 1)\n"
-    "  --real-weight W     factor on the loss weight of the real images' samples (default 1)\n"
-    "  --weight-decay W    L2 weight decay (default 1e-4)\n"
-    "  --weight-average D  write the weights' running average instead of the last step's:\n"
-    "                      each step it moves 1-D of the way to the weights, more early on\n"
-    "                      (at least 9/(10+step)), so it spans the last 1/(1-D) steps or the\n"
-    "                      last tenth of training, whichever is fewer (default 0: off)\n"
-    "  --out FILE.cpp      write the model trained on all training data\n"
-    "  --dump DIR          also write every candidate (patch, features, label, fold) for\n"
-    "                      train_cnn.py, and the MLPs' probabilities: the real images' from\n"
-    "                      the cross-validation, the test sets' from the final model (DIR/mlp/)\n"
-    "  --scores DIR        train nothing: judge the probabilities in DIR (DIR/train0.probs.f32:\n"
-    "                      the real images' cross-validation, DIR/testK.probs.f32: the K-th\n"
-    "                      test set), blended over every --scores given as the detector\n"
-    "                      blends (geometric mean, normalised): the first the MLPs' (DIR/mlp),\n"
-    "                      each further one a network's (DIR/cnn/seedS); the sets must be\n"
-    "                      given as to the run that wrote them\n"
-    "  --evaluate-builtin  train nothing: judge the model compiled into this program (the\n"
-    "                      MLPs blended with the networks, as the detector classifies) on\n"
-    "                      the sets given (real images: a training fit, not a validation)\n"
+    "images and writes it as a model file (app/perception/model/marking_mlp.bin).\n"
+    "\n";
+
+// The options; a description's further lines follow its "\n"s.
+constexpr std::array<markloop::cli::OptionSpec, 19> kOptions = {{
+    {"--real", "DIR", "real images: DIR/annotations.csv + DIR/images/ (roadmarks-honda)"},
+    {"--real-camera", "FILE", "calibration (and detector region) of the real camera"},
+    {"--sim", "DIR", "simulator training set (markloop-sim training-set), with\nDIR/camera.yaml; repeatable"},
+    {"--sim-test", "DIR", "simulator set held apart: only evaluated; repeatable"},
+    {"--sim-drive", "DIR",
+     "simulator drive (markloop-sim drive: visible.csv, frames.y4m)\n"
+     "held apart: every 5th frame evaluated; repeatable"},
+    {"--sim-drive-train", "DIR", "simulator drive trained on (every 5th frame); repeatable"},
+    {"--folds", "N",
+     "cross-validation by clip on the real images (default 4; 0: none):\n"
+     "clip c (60-frame block) is validated in fold c mod N by a model\n"
+     "trained without it"},
+    {"--seed", "N", "random seed (default 1)"},
+    {"--members", "N",
+     "networks in the ensemble, 1..4 (default 3): trained alike\n"
+     "from seeds S, S+100, ... (S: --seed); probabilities averaged"},
+    {"--epochs", "N", "training epochs (default 60)"},
+    {"--hidden", "N", "hidden units (default 64)"},
+    {"--reject-weight", "W", "factor on the reject class's loss weight (default 1)"},
+    {"--real-weight", "W", "factor on the loss weight of the real images' samples (default 1)"},
+    {"--weight-decay", "W", "L2 weight decay (default 1e-4)"},
+    {"--weight-average", "D",
+     "write the weights' running average instead of the last step's:\n"
+     "each step it moves 1-D of the way to the weights, more early on\n"
+     "(at least 9/(10+step)), so it spans the last 1/(1-D) steps or the\n"
+     "last tenth of training, whichever is fewer (default 0: off)"},
+    {"--out", "FILE.bin",
+     "write the model trained on all training data (format:\n"
+     "app/perception/model/README.md), and FILE.txt: how it was trained"},
+    {"--dump", "DIR",
+     "also write every candidate (patch, features, label, fold) for\n"
+     "train_cnn.py, and the MLPs' probabilities: the real images' from\n"
+     "the cross-validation, the test sets' from the final model (DIR/mlp/)"},
+    {"--scores", "DIR",
+     "train nothing: judge the probabilities in DIR (DIR/train0.probs.f32:\n"
+     "the real images' cross-validation, DIR/testK.probs.f32: the K-th\n"
+     "test set), blended over every --scores given as the detector\n"
+     "blends (geometric mean, normalised): the first the MLPs' (DIR/mlp),\n"
+     "each further one a network's (DIR/cnn/seedS); the sets must be\n"
+     "given as to the run that wrote them"},
+    {"--evaluate-builtin", "",
+     "train nothing: judge the model compiled into this program (the\n"
+     "MLPs blended with the networks, as the detector classifies) on\n"
+     "the sets given (real images: a training fit, not a validation)"},
+}};
+
+constexpr const char* kUsageTail =
     "\n"
     "Diagnostics, set in the environment:\n"
     "  MARKLOOP_TRAIN_SHOW_MISSES=1  per evaluation, how the missed markings were classified\n"
@@ -108,6 +124,25 @@ constexpr const char* kUsage =
     "Annotation files are read whole: annotations.csv up to 64 MiB, a drive's visible.csv\n"
     "and frames.csv up to 256 MiB each, images up to 256 MiB each.\n"
     "Exit status: 0 on success; 1 when an output cannot be written; 2 on bad options or input.\n";
+
+// The help text: the option lines as cli::options_help writes them, a
+// description's further lines indented to its first.
+std::string usage() {
+  std::size_t column = 0;  // where options_help starts the descriptions
+  for (const auto& o : kOptions)
+    column = std::max(column, o.name.size() + (o.value_name.empty() ? 0 : o.value_name.size() + 1));
+  column += 4;
+  const std::string lines = markloop::cli::options_help(kOptions);
+  std::string text = kUsageHead;
+  for (std::size_t start = 0; start < lines.size();) {
+    const std::size_t end = lines.find('\n', start);
+    const std::string_view line(lines.data() + start, end - start);
+    if (!line.starts_with("  -")) text.append(column, ' ');
+    text.append(line).append("\n");
+    start = end + 1;
+  }
+  return text + kUsageTail;
+}
 
 // The classes the targets are judged on: enough real examples to measure.
 constexpr std::array<std::string_view, 11> kMainClasses = {
@@ -221,6 +256,178 @@ constexpr int kDriveStep = 5;  // every 5th frame of a drive: 2 per second at 10
 // only evaluated needs just the detector's own candidates.
 enum class Use { kTrain, kEvaluate };
 
+// The images of a set, in order: stills from DIR/images/, or a drive's
+// frames read on from DIR/frames.y4m.
+class ImageReader {
+ public:
+  ImageReader(const std::string& dir, const CameraModel& camera, bool drive)
+      : dir_(dir), drive_(drive), size_(camera.width(), camera.height()), video_grey_(size_, CV_8UC1) {
+    if (drive_ && !video_.open(dir_ + "/frames.y4m", size_.width, size_.height)) fail(video_.error());
+  }
+
+  // The image `name` (a drive: the frame of that number, at or after the last).
+  cv::Mat grey(const std::string& name) {
+    if (!drive_) {
+      const std::string path = dir_ + "/images/" + name;
+      std::string error;
+      cv::Mat still = markloop::io::read_grey_still(path, size_, error);
+      if (still.empty()) fail(path + ": " + error);
+      return still;
+    }
+    const long wanted = std::stol(name);
+    while (frame_ < wanted) {
+      if (video_.read_frame({video_grey_.data, video_grey_.total()}) != markloop::io::Y4mRead::kFrame)
+        fail(dir_ + "/frames.y4m#" + name + ": frame missing from the video (" + video_.error() + ")");
+      ++frame_;
+    }
+    return video_grey_;
+  }
+
+ private:
+  std::string dir_;
+  bool drive_;
+  cv::Size size_;
+  markloop::io::Y4mReader video_;
+  long frame_ = -1;
+  cv::Mat video_grey_;
+};
+
+// Per annotation of `image`, whether it is in range: every corner on the
+// road inside the detector's region (with the horizon `shift` rows where
+// this image's lane lines put it).
+void mark_in_range(const CameraModel& camera, const BirdsEyeRegion& region, float shift,
+                   train::AnnotatedImage& image) {
+  for (const auto& a : image.annotations) {
+    bool in = true;
+    for (const auto& p : a.quad) {
+      Eigen::Vector2d g;
+      in = in && camera.image_to_ground({p[0], p[1] - shift}, g) && g.x() >= region.x_near_m &&
+           g.x() <= region.x_far_m && g.y() <= region.y_left_m && g.y() >= region.y_right_m;
+    }
+    image.in_range.push_back(in);
+  }
+}
+
+// The label of a candidate centred at `centre`: the class of the annotation
+// containing it, reject when none does, -2 (left out) for a class markloop
+// does not know.
+int label_at(const train::AnnotatedImage& image, const std::array<float, 2>& centre) {
+  for (const auto& a : image.annotations) {
+    if (!inside(a.quad, centre[0], centre[1])) continue;
+    const auto label = marking_class_from_name(a.label);
+    return label ? static_cast<int>(*label) : -2;
+  }
+  return kRejectClass;
+}
+
+// The sample of the detector's candidate `c` in image `index` of a set.
+Sample sample_of(const MarkingDetector& detector, const Candidate& c, const train::AnnotatedImage& image,
+                 int index, bool real, bool drive) {
+  Detection where{};
+  detector.locate(c, where);
+  Sample s;
+  s.features = c.features;
+  s.image = index;
+  s.clip = real ? train::clip_of(image.name) : -1;
+  s.real = real;
+  s.centre = {0.0f, 0.0f};
+  for (const auto& p : where.quad) {
+    s.centre[0] += 0.25f * p[0];
+    s.centre[1] += 0.25f * p[1];
+  }
+  s.augmented = false;
+  s.clipped = c.clipped;
+  s.partial = c.clipped_near_only && detector.config().report_partial_in_stills;
+  s.beyond_region = detector.beyond_region(c);
+  s.box = {c.col0, c.row0, c.col1, c.row1};
+  PatchScratch scratch;
+  Features again;
+  compute_features(detector.birdseye_image(), detector.paint_mask(),
+                   PatchBox{c.col0, c.row0, c.col1, c.row1, c.length_m, c.width_m, c.parts}, scratch, again);
+  keep_patch(scratch, s);
+  if (again != c.features) ++g_patch_mismatches;
+  s.label = label_at(image, s.centre);
+  // A drive lists only markings wholly in the image: a candidate cut by
+  // the edge of the view may be one of the others, so it teaches nothing.
+  if (drive && s.label == kRejectClass && c.clipped) s.label = -2;
+  return s;
+}
+
+// The training copies of a labelled candidate: rotated copies of markings;
+// on the real images also shifted and scaled boxes, and mirrored ones. One
+// random sequence per set, drawn in the order of its candidates.
+class Augmenter {
+ public:
+  explicit Augmenter(const MarkingDetector& detector) : detector_(detector) {}
+
+  void add(const Candidate& c, const Sample& s, bool real, int image, std::vector<Sample>& out) {
+    if (s.label != kRejectClass) add_rotated(detector_, c, s, out, rng_);
+    // The simulator varies its markings itself; the few real clips need more help.
+    if (!real) return;
+    add_jittered(detector_.birdseye_image(), detector_.paint_mask(), c, s, c.col0, c.col1, s.label, out);
+    // An arrow seen in a mirror is its mirror class (a left turn becomes a
+    // right turn): the rare right-hand arrows learn from the many left ones.
+    const int mirrored = mirror_class(s.label);
+    if (mirrored < 0) return;
+    if (mirrored_for_ != image) {
+      cv::flip(detector_.birdseye_image(), mirrored_bev_, 1);
+      cv::flip(detector_.paint_mask(), mirrored_mask_, 1);
+      mirrored_for_ = image;
+    }
+    const int last = mirrored_bev_.cols - 1;
+    add_jittered(mirrored_bev_, mirrored_mask_, c, s, last - c.col1, last - c.col0, mirrored, out);
+  }
+
+ private:
+  // Shifted and scaled boxes (columns col0..col1 of `bev`), as the detector
+  // would cut them on another frame; markings get more copies than the
+  // plentiful rejects.
+  void add_jittered(const cv::Mat& bev, const cv::Mat& mask, const Candidate& c, const Sample& s, int col0,
+                    int col1, int label, std::vector<Sample>& out) {
+    const int copies = s.label == kRejectClass ? 1 : kJitters;
+    const int w = c.col1 - c.col0 + 1, h = c.row1 - c.row0 + 1;
+    for (int k = 0; k < copies; ++k) {
+      PatchBox box{col0 + static_cast<int>(std::lround(jitter_(rng_) * static_cast<float>(w))),
+                   c.row0 + static_cast<int>(std::lround(jitter_(rng_) * static_cast<float>(h))),
+                   col1 + static_cast<int>(std::lround(jitter_(rng_) * static_cast<float>(w))),
+                   c.row1 + static_cast<int>(std::lround(jitter_(rng_) * static_cast<float>(h))),
+                   c.length_m,
+                   c.width_m,
+                   c.parts};
+      box.col0 = std::clamp(box.col0, 0, bev.cols - 1);
+      box.col1 = std::clamp(box.col1, box.col0, bev.cols - 1);
+      box.row0 = std::clamp(box.row0, 0, bev.rows - 1);
+      box.row1 = std::clamp(box.row1, box.row0, bev.rows - 1);
+      Sample copy = s;
+      copy.augmented = true;
+      copy.label = label;
+      PatchScratch scratch;
+      compute_features(bev, mask, box, scratch, copy.features);
+      keep_patch(scratch, copy);
+      out.push_back(copy);
+    }
+  }
+
+  const MarkingDetector& detector_;
+  std::mt19937 rng_{12345};
+  std::uniform_real_distribution<float> jitter_{-0.08f, 0.08f};
+  cv::Mat mirrored_bev_, mirrored_mask_;  // the current image's bird's-eye view, left and right swapped
+  int mirrored_for_ = -1;
+};
+
+void print_extracted(const ImageSet& set, const DetectorCounters& views) {
+  std::printf("%s: %d images, %zu candidates", set.dir.c_str(), static_cast<int>(set.images.size()),
+              set.samples.size());
+  if (const std::uint64_t no_road = views.flat_frames + views.noisy_frames + views.cluttered_frames)
+    std::printf(" (%llu images showing no road: %llu flat, %llu noisy, %llu cluttered)",
+                static_cast<unsigned long long>(no_road), static_cast<unsigned long long>(views.flat_frames),
+                static_cast<unsigned long long>(views.noisy_frames),
+                static_cast<unsigned long long>(views.cluttered_frames));
+  std::printf("\n");
+}
+
+// Every candidate the detector proposes in the set's images, labelled; for
+// training, their augmented copies too.
 ImageSet extract(const std::string& dir, const std::string& camera_path, bool real, Use use,
                  bool drive = false) {
   ImageSet set;
@@ -235,137 +442,19 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   DetectorConfig config;
   if (!load_detector_config(camera_path, config, error)) fail(error);
   MarkingDetector detector(*camera, config);
-  std::mt19937 rng(12345);
-  std::uniform_real_distribution<float> jitter(-0.08f, 0.08f);
-  int loaded = 0;
-  markloop::io::Y4mReader video;
-  long video_frame = -1;
-  cv::Mat video_grey(camera->height(), camera->width(), CV_8UC1);
-  if (drive && !video.open(dir + "/frames.y4m", camera->width(), camera->height())) fail(video.error());
-  const auto& region = config.region;
-  cv::Mat mirrored_bev, mirrored_mask;  // the current image's bird's-eye view, left and right swapped
-  int mirrored_for = -1;
+  Augmenter augmenter(detector);
+  ImageReader reader(dir, *camera, drive);
   for (std::size_t i = 0; i < set.images.size(); ++i) {
     auto& image = set.images[i];
-    const std::string path = drive ? dir + "/frames.y4m#" + image.name : dir + "/images/" + image.name;
-    cv::Mat grey;
-    if (drive) {
-      const long wanted = std::stol(image.name);
-      while (video_frame < wanted) {
-        if (video.read_frame({video_grey.data, video_grey.total()}) != markloop::io::Y4mRead::kFrame)
-          fail(path + ": frame missing from the video (" + video.error() + ")");
-        ++video_frame;
-      }
-      grey = video_grey;
-    } else {
-      grey = markloop::io::read_grey_still(path, {camera->width(), camera->height()}, error);
-      if (grey.empty()) fail(path + ": " + error);
-    }
-    detector.detect_still(grey);
-    ++loaded;
-    // In range: every corner on the road inside the detector's region (with
-    // the horizon where this image's lane lines put it).
-    const float shift = static_cast<float>(detector.horizon_shift());
-    for (const auto& a : image.annotations) {
-      bool in = true;
-      for (const auto& p : a.quad) {
-        Eigen::Vector2d g;
-        in = in && camera->image_to_ground({p[0], p[1] - shift}, g) && g.x() >= region.x_near_m &&
-             g.x() <= region.x_far_m && g.y() <= region.y_left_m && g.y() >= region.y_right_m;
-      }
-      image.in_range.push_back(in);
-    }
-
+    detector.detect_still(reader.grey(image.name));
+    mark_in_range(*camera, config.region, static_cast<float>(detector.horizon_shift()), image);
     for (const Candidate& c : detector.candidates()) {
-      Detection where{};
-      detector.locate(c, where);
-      Sample s;
-      s.features = c.features;
-      s.image = static_cast<int>(i);
-      s.clip = real ? train::clip_of(image.name) : -1;
-      s.real = real;
-      s.centre = {0.0f, 0.0f};
-      for (const auto& p : where.quad) {
-        s.centre[0] += 0.25f * p[0];
-        s.centre[1] += 0.25f * p[1];
-      }
-      s.label = kRejectClass;
-      s.augmented = false;
-      s.clipped = c.clipped;
-      s.partial = c.clipped_near_only && config.report_partial_in_stills;
-      s.beyond_region = detector.beyond_region(c);
-      s.box = {c.col0, c.row0, c.col1, c.row1};
-      {
-        PatchScratch scratch;
-        Features again;
-        compute_features(detector.birdseye_image(), detector.paint_mask(),
-                         PatchBox{c.col0, c.row0, c.col1, c.row1, c.length_m, c.width_m, c.parts}, scratch,
-                         again);
-        keep_patch(scratch, s);
-        if (again != c.features) ++g_patch_mismatches;
-      }
-      for (const auto& a : image.annotations) {
-        if (!inside(a.quad, s.centre[0], s.centre[1])) continue;
-        const auto label = marking_class_from_name(a.label);
-        s.label = label ? static_cast<int>(*label) : -2;
-        break;
-      }
-      // A drive lists only markings wholly in the image: a candidate cut by
-      // the edge of the view may be one of the others, so it teaches nothing.
-      if (drive && s.label == kRejectClass && c.clipped) s.label = -2;
+      const Sample s = sample_of(detector, c, image, static_cast<int>(i), real, drive);
       set.samples.push_back(s);
-      if (s.label < 0 || use == Use::kEvaluate) continue;
-      if (s.label != kRejectClass) add_rotated(detector, c, s, set.samples, rng);
-      // The simulator varies its markings itself; the few real clips need more help.
-      if (!real) continue;
-      // Shifted and scaled boxes, as the detector would cut them on another
-      // frame; markings get more copies than the plentiful rejects.
-      const int copies = s.label == kRejectClass ? 1 : kJitters;
-      const int w = c.col1 - c.col0 + 1, h = c.row1 - c.row0 + 1;
-      const auto add = [&](const cv::Mat& bev, const cv::Mat& mask, int col0, int col1, int label) {
-        for (int k = 0; k < copies; ++k) {
-          PatchBox box{col0 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(w))),
-                       c.row0 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(h))),
-                       col1 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(w))),
-                       c.row1 + static_cast<int>(std::lround(jitter(rng) * static_cast<float>(h))),
-                       c.length_m,
-                       c.width_m,
-                       c.parts};
-          box.col0 = std::clamp(box.col0, 0, bev.cols - 1);
-          box.col1 = std::clamp(box.col1, box.col0, bev.cols - 1);
-          box.row0 = std::clamp(box.row0, 0, bev.rows - 1);
-          box.row1 = std::clamp(box.row1, box.row0, bev.rows - 1);
-          Sample copy = s;
-          copy.augmented = true;
-          copy.label = label;
-          PatchScratch scratch;
-          compute_features(bev, mask, box, scratch, copy.features);
-          keep_patch(scratch, copy);
-          set.samples.push_back(copy);
-        }
-      };
-      add(detector.birdseye_image(), detector.paint_mask(), c.col0, c.col1, s.label);
-      // An arrow seen in a mirror is its mirror class (a left turn becomes a
-      // right turn): the rare right-hand arrows learn from the many left ones.
-      if (const int mirrored = mirror_class(s.label); mirrored >= 0) {
-        if (mirrored_for != static_cast<int>(i)) {
-          cv::flip(detector.birdseye_image(), mirrored_bev, 1);
-          cv::flip(detector.paint_mask(), mirrored_mask, 1);
-          mirrored_for = static_cast<int>(i);
-        }
-        const int last = mirrored_bev.cols - 1;
-        add(mirrored_bev, mirrored_mask, last - c.col1, last - c.col0, mirrored);
-      }
+      if (s.label >= 0 && use == Use::kTrain) augmenter.add(c, s, real, static_cast<int>(i), set.samples);
     }
   }
-  const DetectorCounters& views = detector.counters();
-  std::printf("%s: %d images, %zu candidates", dir.c_str(), loaded, set.samples.size());
-  if (const std::uint64_t no_road = views.flat_frames + views.noisy_frames + views.cluttered_frames)
-    std::printf(" (%llu images showing no road: %llu flat, %llu noisy, %llu cluttered)",
-                static_cast<unsigned long long>(no_road), static_cast<unsigned long long>(views.flat_frames),
-                static_cast<unsigned long long>(views.noisy_frames),
-                static_cast<unsigned long long>(views.cluttered_frames));
-  std::printf("\n");
+  print_extracted(set, detector.counters());
   return set;
 }
 
@@ -441,14 +530,11 @@ void fix_matrix_product_blocking() {
   Eigen::setCpuCacheSizes(kL1, kL2, kL3);
 }
 
-Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& options) {
-  flush_subnormals_to_zero();
+// The samples' features as columns, standardised; sets m's mean and
+// inverse standard deviation from them.
+Eigen::MatrixXf standardised_features(const std::vector<const Sample*>& data, Mlp& m) {
   const int n = static_cast<int>(data.size());
-  const int d = kFeatureCount, k = kClassifierOutputs;
-  Mlp m;
-  m.inputs = d;
-  m.hidden = options.hidden;
-  m.outputs = k;
+  const int d = kFeatureCount;
   Eigen::MatrixXf x(d, n);
   for (int s = 0; s < n; ++s)
     for (int i = 0; i < d; ++i) x(i, s) = data[s]->features[i];
@@ -459,38 +545,136 @@ Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& option
     m.inv_std(i) = 1.0f / std::sqrt(var + 1e-4f);
   }
   for (int s = 0; s < n; ++s) x.col(s) = (x.col(s) - m.mean).cwiseProduct(m.inv_std);
+  return x;
+}
 
-  // Rare classes weigh more (inverse square root of their frequency).
+// Rare classes weigh more (inverse square root of their frequency).
+std::vector<float> class_weights(const std::vector<const Sample*>& data, float reject_weight) {
+  const int n = static_cast<int>(data.size());
+  const int k = kClassifierOutputs;
   std::vector<int> count(k, 0);
   for (const Sample* s : data) ++count[s->label];
   std::vector<float> class_weight(k, 0.0f);
   for (int c = 0; c < k; ++c)
     class_weight[c] =
         count[c] > 0 ? std::sqrt(static_cast<float>(n) / static_cast<float>(k * count[c])) : 0.0f;
-  class_weight[kRejectClass] *= options.reject_weight;
+  class_weight[kRejectClass] *= reject_weight;
+  return class_weight;
+}
 
-  std::mt19937 rng(options.seed);
+// Random weights scaled to their layer's inputs (He), zero biases.
+void initialise(Mlp& m, std::mt19937& rng) {
   std::normal_distribution<float> normal(0.0f, 1.0f);
-  m.w1 = Eigen::MatrixXf::NullaryExpr(m.hidden, d, [&] { return normal(rng); }) *
-         std::sqrt(2.0f / static_cast<float>(d));
-  m.w2 = Eigen::MatrixXf::NullaryExpr(k, m.hidden, [&] { return normal(rng); }) *
+  m.w1 = Eigen::MatrixXf::NullaryExpr(m.hidden, m.inputs, [&] { return normal(rng); }) *
+         std::sqrt(2.0f / static_cast<float>(m.inputs));
+  m.w2 = Eigen::MatrixXf::NullaryExpr(m.outputs, m.hidden, [&] { return normal(rng); }) *
          std::sqrt(2.0f / static_cast<float>(m.hidden));
   m.b1 = Eigen::VectorXf::Zero(m.hidden);
-  m.b2 = Eigen::VectorXf::Zero(k);
+  m.b2 = Eigen::VectorXf::Zero(m.outputs);
+}
 
-  // Adam state.
-  Eigen::MatrixXf mw1 = Eigen::MatrixXf::Zero(m.hidden, d), vw1 = mw1;
-  Eigen::MatrixXf mw2 = Eigen::MatrixXf::Zero(k, m.hidden), vw2 = mw2;
-  Eigen::VectorXf mb1 = Eigen::VectorXf::Zero(m.hidden), vb1 = mb1;
-  Eigen::VectorXf mb2 = Eigen::VectorXf::Zero(k), vb2 = mb2;
-  constexpr float kRate = 1e-3f, kBeta1 = 0.9f, kBeta2 = 0.999f, kEps = 1e-8f;
-  const float kWeightDecay = options.weight_decay;
+constexpr float kRate = 1e-3f, kBeta1 = 0.9f, kBeta2 = 0.999f, kEps = 1e-8f;
+
+// Adam's moments of every parameter, and the steps taken.
+struct AdamState {
+  explicit AdamState(const Mlp& m)
+      : mw1(Eigen::MatrixXf::Zero(m.hidden, m.inputs)),
+        vw1(mw1),
+        mw2(Eigen::MatrixXf::Zero(m.outputs, m.hidden)),
+        vw2(mw2),
+        mb1(Eigen::VectorXf::Zero(m.hidden)),
+        vb1(mb1),
+        mb2(Eigen::VectorXf::Zero(m.outputs)),
+        vb2(mb2) {}
+  Eigen::MatrixXf mw1, vw1, mw2, vw2;
+  Eigen::VectorXf mb1, vb1, mb2, vb2;
+  int step = 0;
+};
+
+// One parameter's Adam update; c1 and c2 correct the moments' bias.
+template <typename Parameter>
+void adam_update(Parameter& param, Parameter& mom, Parameter& vel, const Parameter& grad, float c1,
+                 float c2) {
+  mom = kBeta1 * mom + (1.0f - kBeta1) * grad;
+  vel = kBeta2 * vel + (1.0f - kBeta2) * grad.cwiseProduct(grad);
+  param.array() -= kRate * (mom.array() / c1) / ((vel.array() / c2).sqrt() + kEps);
+}
+
+// One step of Adam on a batch: the samples xb (columns), their one-hot
+// targets and loss weights.
+void train_step(Mlp& m, const Eigen::MatrixXf& xb, const Eigen::MatrixXf& target,
+                const Eigen::RowVectorXf& weight, float weight_decay, AdamState& adam) {
+  const int b = static_cast<int>(xb.cols());
+  const Eigen::MatrixXf pre = (m.w1 * xb).colwise() + m.b1;
+  const Eigen::MatrixXf h = pre.cwiseMax(0.0f);
+  Eigen::MatrixXf logits = (m.w2 * h).colwise() + m.b2;
+  for (int j = 0; j < b; ++j) {
+    logits.col(j).array() -= logits.col(j).maxCoeff();
+    logits.col(j) = logits.col(j).array().exp();
+    logits.col(j) /= logits.col(j).sum();
+  }
+  Eigen::MatrixXf dlogits = (logits - target).array().rowwise() * weight.array();
+  dlogits /= static_cast<float>(b);
+  const Eigen::MatrixXf gw2 = dlogits * h.transpose() + weight_decay * m.w2;
+  const Eigen::VectorXf gb2 = dlogits.rowwise().sum();
+  Eigen::MatrixXf dh = m.w2.transpose() * dlogits;
+  dh = dh.cwiseProduct((pre.array() > 0.0f).cast<float>().matrix());
+  const Eigen::MatrixXf gw1 = dh * xb.transpose() + weight_decay * m.w1;
+  const Eigen::VectorXf gb1 = dh.rowwise().sum();
+  ++adam.step;
+  const float c1 = 1.0f - std::pow(kBeta1, static_cast<float>(adam.step));
+  const float c2 = 1.0f - std::pow(kBeta2, static_cast<float>(adam.step));
+  adam_update(m.w1, adam.mw1, adam.vw1, gw1, c1, c2);
+  adam_update(m.b1, adam.mb1, adam.vb1, gb1, c1, c2);
+  adam_update(m.w2, adam.mw2, adam.vw2, gw2, c1, c2);
+  adam_update(m.b2, adam.mb2, adam.vb2, gb2, c1, c2);
+}
+
+// The weights' running average (--weight-average).
+struct WeightAverage {
+  explicit WeightAverage(const Mlp& m) : w1(m.w1), w2(m.w2), b1(m.b1), b2(m.b2) {}
+
+  // After step `step`; early on the decay is lower, so the random start is
+  // soon forgotten.
+  void follow(const Mlp& m, float weight_average, int step) {
+    const float decay =
+        std::min(weight_average, (1.0f + static_cast<float>(step)) / (10.0f + static_cast<float>(step)));
+    const auto follow_one = [decay](auto& average, const auto& param) {
+      average = decay * average + (1.0f - decay) * param;
+    };
+    follow_one(w1, m.w1);
+    follow_one(b1, m.b1);
+    follow_one(w2, m.w2);
+    follow_one(b2, m.b2);
+  }
+  void replace(Mlp& m) const {
+    m.w1 = w1;
+    m.b1 = b1;
+    m.w2 = w2;
+    m.b2 = b2;
+  }
+
+  Eigen::MatrixXf w1, w2;
+  Eigen::VectorXf b1, b2;
+};
+
+Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& options) {
+  flush_subnormals_to_zero();
+  const int n = static_cast<int>(data.size());
+  const int d = kFeatureCount, k = kClassifierOutputs;
+  Mlp m;
+  m.inputs = d;
+  m.hidden = options.hidden;
+  m.outputs = k;
+  const Eigen::MatrixXf x = standardised_features(data, m);
+  const std::vector<float> class_weight = class_weights(data, options.reject_weight);
+  std::mt19937 rng(options.seed);
+  initialise(m, rng);
+  AdamState adam(m);
+  WeightAverage average(m);
   constexpr int kBatch = 64;
   std::vector<int> order(n);
   std::iota(order.begin(), order.end(), 0);
-  int step = 0;
-  Eigen::MatrixXf average_w1 = m.w1, average_w2 = m.w2;
-  Eigen::VectorXf average_b1 = m.b1, average_b2 = m.b2;
   for (int epoch = 0; epoch < options.epochs; ++epoch) {
     std::shuffle(order.begin(), order.end(), rng);
     for (int start = 0; start < n; start += kBatch) {
@@ -504,54 +688,11 @@ Mlp train_mlp(const std::vector<const Sample*>& data, const TrainOptions& option
         target(data[s]->label, j) = 1.0f;
         weight(j) = class_weight[data[s]->label] * (data[s]->real ? options.real_weight : 1.0f);
       }
-      const Eigen::MatrixXf pre = (m.w1 * xb).colwise() + m.b1;
-      const Eigen::MatrixXf h = pre.cwiseMax(0.0f);
-      Eigen::MatrixXf logits = (m.w2 * h).colwise() + m.b2;
-      for (int j = 0; j < b; ++j) {
-        logits.col(j).array() -= logits.col(j).maxCoeff();
-        logits.col(j) = logits.col(j).array().exp();
-        logits.col(j) /= logits.col(j).sum();
-      }
-      Eigen::MatrixXf dlogits = (logits - target).array().rowwise() * weight.array();
-      dlogits /= static_cast<float>(b);
-      const Eigen::MatrixXf gw2 = dlogits * h.transpose() + kWeightDecay * m.w2;
-      const Eigen::VectorXf gb2 = dlogits.rowwise().sum();
-      Eigen::MatrixXf dh = m.w2.transpose() * dlogits;
-      dh = dh.cwiseProduct((pre.array() > 0.0f).cast<float>().matrix());
-      const Eigen::MatrixXf gw1 = dh * xb.transpose() + kWeightDecay * m.w1;
-      const Eigen::VectorXf gb1 = dh.rowwise().sum();
-      ++step;
-      const float c1 = 1.0f - std::pow(kBeta1, static_cast<float>(step));
-      const float c2 = 1.0f - std::pow(kBeta2, static_cast<float>(step));
-      const auto adam = [&](auto& param, auto& mom, auto& vel, const auto& grad) {
-        mom = kBeta1 * mom + (1.0f - kBeta1) * grad;
-        vel = kBeta2 * vel + (1.0f - kBeta2) * grad.cwiseProduct(grad);
-        param.array() -= kRate * (mom.array() / c1) / ((vel.array() / c2).sqrt() + kEps);
-      };
-      adam(m.w1, mw1, vw1, gw1);
-      adam(m.b1, mb1, vb1, gb1);
-      adam(m.w2, mw2, vw2, gw2);
-      adam(m.b2, mb2, vb2, gb2);
-      if (options.weight_average > 0.0f) {
-        // Early on the decay is lower, so the random start is soon forgotten.
-        const float decay = std::min(options.weight_average,
-                                     (1.0f + static_cast<float>(step)) / (10.0f + static_cast<float>(step)));
-        const auto follow = [decay](auto& average, const auto& param) {
-          average = decay * average + (1.0f - decay) * param;
-        };
-        follow(average_w1, m.w1);
-        follow(average_b1, m.b1);
-        follow(average_w2, m.w2);
-        follow(average_b2, m.b2);
-      }
+      train_step(m, xb, target, weight, options.weight_decay, adam);
+      if (options.weight_average > 0.0f) average.follow(m, options.weight_average, adam.step);
     }
   }
-  if (options.weight_average > 0.0f) {
-    m.w1 = average_w1;
-    m.b1 = average_b1;
-    m.w2 = average_w2;
-    m.b2 = average_b2;
-  }
+  if (options.weight_average > 0.0f) average.replace(m);
   m.freeze();
   return m;
 }
@@ -906,318 +1047,387 @@ void print_coverage(const ImageSet& set) {
 // arithmetic follows the compiler's flags (CMakeLists.txt beside this file).
 constexpr const char* kBuild = MARKLOOP_TRAIN_BUILD_DIR;
 
-void write_model(const std::vector<Mlp>& members, const std::string& path, const std::string& command,
-                 std::size_t samples) {
-  const Mlp& first = members.front();
+void write_bytes(const std::string& path, const std::string& bytes) {
   markloop::tools::OutputFile file;
   std::string error;
   if (!file.open(path, error)) markloop::tools::fail_run(error);
-  FILE* f = file.get();
-  std::fprintf(f,
-               "// GENERATED by markloop-train: do not edit. Regenerate with\n"
-               "//   app/tools/train/train-model.sh\n"
-               "// from the repository root (%s built by its preset; the real images are not part\n"
-               "// of the repository), which renders the simulator data and runs\n"
-               "//   %s\n"
-               "// %zu training candidates; %zu networks of %d inputs, %d hidden units (ReLU),\n"
-               "// %d outputs (the marking classes of marking_classes.hpp, then reject).\n"
-               "// Hexadecimal floats: the trained values exactly.\n",
-               kBuild, command.c_str(), samples, members.size(), first.inputs, first.hidden, first.outputs);
-  std::fprintf(f,
-               "#include \"perception/marking_classifier.hpp\"\n\n"
-               "namespace markloop::perception {\nnamespace {\n\n"
-               "constexpr int kHidden = %d;\n"
-               "static_assert(kFeatureCount == %d, \"features changed: retrain\");\n"
-               "static_assert(kClassifierOutputs == %d, \"classes changed: retrain\");\n\n",
-               first.hidden, first.inputs, first.outputs);
-  const auto array = [&](const char* name, std::size_t member, const float* v, std::size_t n) {
-    std::fprintf(f, "constexpr float %s%zu[%zu] = {", name, member, n);
-    for (std::size_t i = 0; i < n; ++i)
-      std::fprintf(f, "%s%af%s", i % 6 == 0 ? "\n    " : "", static_cast<double>(v[i]),
-                   i + 1 < n ? ", " : "");
-    std::fprintf(f, "};\n\n");
-  };
-  for (std::size_t i = 0; i < members.size(); ++i) {
-    const Mlp& m = members[i];
-    array("kMean", i, m.mean.data(), m.mean.size());
-    array("kInvStd", i, m.inv_std.data(), m.inv_std.size());
-    array("kW1_", i, m.w1_row_major.data(), m.w1_row_major.size());
-    array("kB1_", i, m.b1.data(), m.b1.size());
-    array("kW2_", i, m.w2_row_major.data(), m.w2_row_major.size());
-    array("kB2_", i, m.b2.data(), m.b2.size());
-  }
-  std::fprintf(f, "constexpr MlpModel kModel{%zu, {{", members.size());
-  for (std::size_t i = 0; i < members.size(); ++i)
-    std::fprintf(f,
-                 "%s\n    MlpNet{kFeatureCount, kHidden, kClassifierOutputs, kMean%zu, kInvStd%zu, "
-                 "kW1_%zu, kB1_%zu, kW2_%zu, kB2_%zu}",
-                 i > 0 ? "," : "", i, i, i, i, i, i);
-  std::fprintf(f,
-               "}}};\n\n"
-               "}  // namespace\n\n"
-               "const MlpModel& builtin_marking_model() { return kModel; }\n\n"
-               "}  // namespace markloop::perception\n");
+  std::fwrite(bytes.data(), 1, bytes.size(), file.get());
   if (!file.close(error)) markloop::tools::fail_run(error);
 }
 
-int train_main(int argc, char** argv) {
-  fix_matrix_product_blocking();  // before any training thread starts
+// --out: the model file (app/perception/model/README.md: every member's
+// arrays in turn), and beside it FILE.txt saying how it was trained.
+void write_model(const std::vector<Mlp>& members, const std::string& path, const std::string& command,
+                 std::size_t samples) {
+  namespace model_file = markloop::perception::model_file;
+  const Mlp& first = members.front();
+  std::vector<float> values;
+  const auto add = [&values](const float* v, Eigen::Index n) { values.insert(values.end(), v, v + n); };
+  for (const Mlp& m : members) {
+    add(m.mean.data(), m.mean.size());
+    add(m.inv_std.data(), m.inv_std.size());
+    add(m.w1_row_major.data(), static_cast<Eigen::Index>(m.w1_row_major.size()));
+    add(m.b1.data(), m.b1.size());
+    add(m.w2_row_major.data(), static_cast<Eigen::Index>(m.w2_row_major.size()));
+    add(m.b2.data(), m.b2.size());
+  }
+  const auto shape = [&first] {
+    std::array<std::uint32_t, model_file::kShapeWords> s{};
+    s[0] = static_cast<std::uint32_t>(first.inputs);
+    s[1] = static_cast<std::uint32_t>(first.hidden);
+    s[2] = static_cast<std::uint32_t>(first.outputs);
+    return s;
+  }();
+  write_bytes(path, model_file::encode(model_file::Kind::kMlp, static_cast<std::uint32_t>(members.size()),
+                                       shape, values));
+
+  markloop::tools::OutputFile notes;
+  std::string error;
+  if (!notes.open(std::filesystem::path(path).replace_extension(".txt").string(), error))
+    markloop::tools::fail_run(error);
+  std::fprintf(notes.get(),
+               "%s: the marking classifier's MLPs, written by markloop-train\n"
+               "(format: app/perception/model/README.md). Regenerate with\n"
+               "  app/tools/train/train-model.sh\n"
+               "from the repository root (%s built by its preset; the real images are not part\n"
+               "of the repository), which renders the simulator data and runs\n"
+               "  %s\n"
+               "%zu training candidates; %zu networks of %d inputs, %d hidden units (ReLU),\n"
+               "%d outputs (the marking classes of marking_classes.hpp, then reject).\n"
+               "Payload CRC-32 0x%08x.\n",
+               std::filesystem::path(path).filename().c_str(), kBuild, command.c_str(), samples,
+               members.size(), first.inputs, first.hidden, first.outputs,
+               static_cast<unsigned>(model_file::payload_crc(values)));
+  if (!notes.close(error)) markloop::tools::fail_run(error);
+}
+
+// The command line.
+struct Options {
   std::string real_dir, real_camera, out, dump_dir;
   std::vector<std::string> scores_dirs;
   std::vector<std::string> sim_dirs, sim_test_dirs, sim_drive_dirs, sim_drive_train_dirs;
   int folds = 4;
-  TrainOptions options;
-  std::string command = std::string(kBuild) + "/bin/markloop-train";
+  TrainOptions train;
   bool evaluate_builtin = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    if (arg == "--evaluate-builtin") {
-      evaluate_builtin = true;
+  bool help = false;
+  std::string command;  // as the model's notes give it
+};
+
+// One option with a value; numbers fail when they are not.
+void apply_option(Options& o, std::string_view name, const std::string& text) {
+  using markloop::cli::parse_number;
+  using markloop::cli::parse_whole;
+  const char* value = text.c_str();
+  if (name == "--real")
+    o.real_dir = text;
+  else if (name == "--real-camera")
+    o.real_camera = text;
+  else if (name == "--sim")
+    o.sim_dirs.push_back(text);
+  else if (name == "--sim-test")
+    o.sim_test_dirs.push_back(text);
+  else if (name == "--sim-drive")
+    o.sim_drive_dirs.push_back(text);
+  else if (name == "--sim-drive-train")
+    o.sim_drive_train_dirs.push_back(text);
+  else if (name == "--folds")
+    o.folds = static_cast<int>(parse_whole(name, value));
+  else if (name == "--seed")
+    o.train.seed = parse_whole(name, value);
+  else if (name == "--epochs")
+    o.train.epochs = static_cast<int>(parse_whole(name, value));
+  else if (name == "--members")
+    o.train.members = static_cast<int>(parse_whole(name, value));
+  else if (name == "--hidden")
+    o.train.hidden = static_cast<int>(parse_whole(name, value));
+  else if (name == "--real-weight")
+    o.train.real_weight = static_cast<float>(parse_number(name, value));
+  else if (name == "--reject-weight")
+    o.train.reject_weight = static_cast<float>(parse_number(name, value));
+  else if (name == "--weight-decay")
+    o.train.weight_decay = static_cast<float>(parse_number(name, value));
+  else if (name == "--weight-average")
+    o.train.weight_average = static_cast<float>(parse_number(name, value));
+  else if (name == "--out")
+    o.out = text;
+  else if (name == "--dump")
+    o.dump_dir = text;
+  else if (name == "--scores")
+    o.scores_dirs.push_back(text);
+}
+
+// The options in the order given (the values before a --help are checked
+// too, as they come).
+Options parse_options(int argc, char** argv) {
+  const markloop::cli::ParsedArgs args = markloop::cli::parse_args_or_fail(argc, argv, kOptions);
+  Options o;
+  o.command = std::string(kBuild) + "/bin/markloop-train";
+  for (const auto& [name, value] : args.given()) {
+    if (name == "--evaluate-builtin") {
+      o.evaluate_builtin = true;
       continue;
     }
-    const char* value = markloop::cli::option_value(
-        argc, argv, i,
-        {"--real", "--real-camera", "--sim", "--sim-test", "--sim-drive", "--sim-drive-train", "--folds",
-         "--seed", "--epochs", "--members", "--hidden", "--real-weight", "--reject-weight", "--weight-decay",
-         "--weight-average", "--out", "--dump", "--scores"});
-    command += " " + arg + " " + value;
-    if (arg == "--real")
-      real_dir = value;
-    else if (arg == "--real-camera")
-      real_camera = value;
-    else if (arg == "--sim")
-      sim_dirs.emplace_back(value);
-    else if (arg == "--sim-test")
-      sim_test_dirs.emplace_back(value);
-    else if (arg == "--sim-drive")
-      sim_drive_dirs.emplace_back(value);
-    else if (arg == "--sim-drive-train")
-      sim_drive_train_dirs.emplace_back(value);
-    else if (arg == "--folds")
-      folds = static_cast<int>(markloop::cli::parse_whole(arg, value));
-    else if (arg == "--seed")
-      options.seed = markloop::cli::parse_whole(arg, value);
-    else if (arg == "--epochs")
-      options.epochs = static_cast<int>(markloop::cli::parse_whole(arg, value));
-    else if (arg == "--members")
-      options.members = static_cast<int>(markloop::cli::parse_whole(arg, value));
-    else if (arg == "--hidden")
-      options.hidden = static_cast<int>(markloop::cli::parse_whole(arg, value));
-    else if (arg == "--real-weight")
-      options.real_weight = static_cast<float>(markloop::cli::parse_number(arg, value));
-    else if (arg == "--reject-weight")
-      options.reject_weight = static_cast<float>(markloop::cli::parse_number(arg, value));
-    else if (arg == "--weight-decay")
-      options.weight_decay = static_cast<float>(markloop::cli::parse_number(arg, value));
-    else if (arg == "--weight-average")
-      options.weight_average = static_cast<float>(markloop::cli::parse_number(arg, value));
-    else if (arg == "--out")
-      out = value;
-    else if (arg == "--dump")
-      dump_dir = value;
-    else if (arg == "--scores")
-      scores_dirs.emplace_back(value);
+    o.command.append(" ").append(name).append(" ").append(value);
+    apply_option(o, name, std::string(value));
   }
-  if (!scores_dirs.empty() && (evaluate_builtin || !dump_dir.empty() || !out.empty()))
-    fail("--scores judges given probabilities: not with --evaluate-builtin, --dump or --out");
-  if (evaluate_builtin &&
-      (!sim_dirs.empty() || !sim_drive_train_dirs.empty() || !out.empty() || !dump_dir.empty()))
-    fail("--evaluate-builtin trains nothing: give only --real, --real-camera, --sim-test and --sim-drive");
-  if (evaluate_builtin && real_dir.empty() && sim_test_dirs.empty() && sim_drive_dirs.empty())
-    fail("--evaluate-builtin: nothing to judge: give --real, --sim-test or --sim-drive");
-  if (!evaluate_builtin && real_dir.empty() && sim_dirs.empty() && sim_drive_train_dirs.empty())
-    fail("no training data: give --real, --sim or --sim-drive-train");
-  if (!real_dir.empty() && real_camera.empty()) fail("--real needs --real-camera");
-  if (options.members < 1 || options.members > kMaxMembers)
-    fail("--members must be 1.." + std::to_string(kMaxMembers));
-  if (options.hidden < 1 || options.hidden > kMaxHidden)
-    fail("--hidden must be 1.." + std::to_string(kMaxHidden));
-  if (!(options.weight_average >= 0.0f && options.weight_average < 1.0f))
-    fail("--weight-average must be at least 0 and below 1");
+  o.help = args.help();
+  return o;
+}
 
-  std::vector<ImageSet> sets;
-  if (!real_dir.empty()) {
-    sets.push_back(extract(real_dir, real_camera, true, evaluate_builtin ? Use::kEvaluate : Use::kTrain));
-    for (const auto& image : sets.front().images) g_clips.push_back(train::clip_of(image.name));
+// What the options ask for must make sense together.
+void check_options(const Options& o) {
+  if (!o.scores_dirs.empty() && (o.evaluate_builtin || !o.dump_dir.empty() || !o.out.empty()))
+    fail("--scores judges given probabilities: not with --evaluate-builtin, --dump or --out");
+  if (o.evaluate_builtin &&
+      (!o.sim_dirs.empty() || !o.sim_drive_train_dirs.empty() || !o.out.empty() || !o.dump_dir.empty()))
+    fail("--evaluate-builtin trains nothing: give only --real, --real-camera, --sim-test and --sim-drive");
+  if (o.evaluate_builtin && o.real_dir.empty() && o.sim_test_dirs.empty() && o.sim_drive_dirs.empty())
+    fail("--evaluate-builtin: nothing to judge: give --real, --sim-test or --sim-drive");
+  if (!o.evaluate_builtin && o.real_dir.empty() && o.sim_dirs.empty() && o.sim_drive_train_dirs.empty())
+    fail("no training data: give --real, --sim or --sim-drive-train");
+  if (!o.real_dir.empty() && o.real_camera.empty()) fail("--real needs --real-camera");
+  if (o.train.members < 1 || o.train.members > kMaxMembers)
+    fail("--members must be 1.." + std::to_string(kMaxMembers));
+  if (o.train.hidden < 1 || o.train.hidden > kMaxHidden)
+    fail("--hidden must be 1.." + std::to_string(kMaxHidden));
+  if (!(o.train.weight_average >= 0.0f && o.train.weight_average < 1.0f))
+    fail("--weight-average must be at least 0 and below 1");
+}
+
+// The sets trained on (the real images first, when given) and those only judged.
+struct Sets {
+  std::vector<ImageSet> train, tests;
+};
+
+Sets load_sets(const Options& o) {
+  Sets sets;
+  if (!o.real_dir.empty()) {
+    sets.train.push_back(
+        extract(o.real_dir, o.real_camera, true, o.evaluate_builtin ? Use::kEvaluate : Use::kTrain));
+    for (const auto& image : sets.train.front().images) g_clips.push_back(train::clip_of(image.name));
     std::sort(g_clips.begin(), g_clips.end());
     g_clips.erase(std::unique(g_clips.begin(), g_clips.end()), g_clips.end());
   }
-  for (const auto& dir : sim_dirs) sets.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain));
-  for (const auto& dir : sim_drive_train_dirs)
-    sets.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain, true));
-  std::vector<ImageSet> tests;
-  for (const auto& dir : sim_test_dirs)
-    tests.push_back(extract(dir, dir + "/camera.yaml", false, Use::kEvaluate));
-  for (const auto& dir : sim_drive_dirs)
-    tests.push_back(extract(dir, dir + "/camera.yaml", false, Use::kEvaluate, true));
+  for (const auto& dir : o.sim_dirs)
+    sets.train.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain));
+  for (const auto& dir : o.sim_drive_train_dirs)
+    sets.train.push_back(extract(dir, dir + "/camera.yaml", false, Use::kTrain, true));
+  for (const auto& dir : o.sim_test_dirs)
+    sets.tests.push_back(extract(dir, dir + "/camera.yaml", false, Use::kEvaluate));
+  for (const auto& dir : o.sim_drive_dirs)
+    sets.tests.push_back(extract(dir, dir + "/camera.yaml", false, Use::kEvaluate, true));
+  return sets;
+}
 
-  const float min_score = DetectorConfig{}.min_score;
-  // The real images judged by a model trained on them: a fit, not a validation.
-  const auto judge_real_fit = [&](const ClassifySample& model, const char* title) {
-    const ImageSet& real = sets.front();
-    Score fit;
-    evaluate(real, model, std::vector<bool>(real.images.size(), true), min_score, fit);
-    print_score(title, fit, true);
-  };
-  const auto judge_tests = [&](const ClassifySample& model) {
-    for (const auto& test : tests) {
-      print_coverage(test);
-      Score score;
-      evaluate(test, model, std::vector<bool>(test.images.size(), true), min_score, score);
-      print_score(("Simulator test set " + test.dir + " (never trained on):").c_str(), score, false);
-    }
-  };
-  // --dump DIR: the candidates for train_cnn.py, and the MLPs' probabilities
-  // (DIR/mlp/) for the blend judged with --scores.
-  if (!dump_dir.empty()) {
-    std::error_code made;
-    std::filesystem::create_directories(dump_dir + "/mlp", made);
-    if (made) markloop::tools::fail_run(dump_dir + "/mlp: cannot create the directory: " + made.message());
-    markloop::tools::OutputFile index;
-    std::string error;
-    if (!index.open(dump_dir + "/sets.txt", error)) markloop::tools::fail_run(error);
-    for (std::size_t k = 0; k < sets.size(); ++k) {
-      dump_set(sets[k], dump_dir + "/train" + std::to_string(k), folds);
-      std::fprintf(index.get(), "train%zu %s %zu\n", k, sets[k].dir.c_str(), sets[k].samples.size());
-    }
-    for (std::size_t k = 0; k < tests.size(); ++k) {
-      dump_set(tests[k], dump_dir + "/test" + std::to_string(k), folds);
-      std::fprintf(index.get(), "test%zu %s %zu\n", k, tests[k].dir.c_str(), tests[k].samples.size());
-    }
-    if (!index.close(error)) markloop::tools::fail_run(error);
-    // The patches written must be those the detector classified.
-    if (g_patch_mismatches > 0)
-      fail(std::to_string(g_patch_mismatches) + " candidates' patches do not give their features");
-  }
-  if (!scores_dirs.empty()) {
-    // The probabilities written by --dump (MLPs, the first DIR) and
-    // train_cnn.py (a network per further DIR), blended as the detector
-    // blends them (blend_with_networks, where networks_needed). One DIR
-    // alone is judged as it is.
-    const auto judge_with = [&](const ImageSet& set, const std::string& name,
-                                std::span<const float> thresholds, std::span<Score> by_threshold) {
-      std::vector<std::vector<float>> by_dir(scores_dirs.size());
-      for (std::size_t d = 0; d < scores_dirs.size(); ++d)
-        read_probabilities(set, scores_dirs[d] + "/" + name + ".probs.f32", by_dir[d]);
-      const DetectorConfig defaults;
-      std::vector<float> blended = by_dir.front();
-      std::vector<std::array<float, kClassifierOutputs>> networks(by_dir.size() - 1);
-      for (std::size_t at = 0; at < blended.size(); at += kClassifierOutputs) {
-        std::array<float, kClassifierOutputs> sample;
-        std::copy_n(blended.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
-        if (networks.empty() || !networks_needed(sample, defaults.cnn_share, defaults.skip_networks_at))
-          continue;
-        for (std::size_t m = 0; m < networks.size(); ++m)
-          std::copy_n(by_dir[m + 1].begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs,
-                      networks[m].begin());
-        blend_with_networks(sample, networks, defaults.cnn_share);
-        std::copy(sample.begin(), sample.end(), blended.begin() + static_cast<std::ptrdiff_t>(at));
-      }
-      evaluate(set, by_probabilities(set, blended), std::vector<bool>(set.images.size(), true), thresholds,
-               by_threshold);
-    };
-    if (!real_dir.empty()) {
-      const std::vector<float> thresholds = {min_score, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
-      std::vector<Score> by_threshold(thresholds.size());
-      print_coverage(sets.front());
-      judge_with(sets.front(), "train0", thresholds, by_threshold);
-      print_score("Real images, cross-validation by clip, the probabilities given blended:",
-                  by_threshold.front(), true);
-      print_operating_points(std::span(thresholds).subspan(1), std::span(by_threshold).subspan(1));
-    }
-    for (std::size_t k = 0; k < tests.size(); ++k) {
-      Score score;
-      print_coverage(tests[k]);
-      judge_with(tests[k], "test" + std::to_string(k), std::span(&min_score, 1), std::span(&score, 1));
-      print_score(("Simulator test set " + tests[k].dir + ", the probabilities given blended:").c_str(),
-                  score, false);
-    }
-    return 0;
-  }
-  if (evaluate_builtin) {
-    // As the detector classifies: the MLPs blended with the networks.
-    const ClassifySample model = [](const Sample& s, std::array<float, kClassifierOutputs>& p) {
-      PatchScratch patch;
-      patch.grey = s.grey;
-      for (std::size_t i = 0; i < patch.paint.size(); ++i) patch.paint[i] = s.paint[i] * (1.0f / 255.0f);
-      CnnScratch scratch;
-      const DetectorConfig defaults;
-      return classify(builtin_marking_model(), &builtin_marking_cnn(), defaults.cnn_share,
-                      defaults.skip_networks_at, s.features, patch, scratch, p);
-    };
-    if (!real_dir.empty()) {
-      print_coverage(sets.front());
-      judge_real_fit(model, "Real images, the built-in model (trained on them: a fit, not a validation):");
-    }
-    judge_tests(model);
-    return 0;
-  }
-  const auto training = [&](int held_out_fold) {
-    std::vector<const Sample*> data;
-    for (const auto& set : sets)
-      for (const Sample& s : set.samples) {
-        if (s.label < 0) continue;
-        if (held_out_fold >= 0 && s.real && fold_of(s.clip, folds) == held_out_fold) continue;
-        data.push_back(&s);
-      }
-    return data;
-  };
+float default_min_score() {
+  return DetectorConfig{}.min_score;
+}
 
-  if (!real_dir.empty() && folds > 1) {
-    const ImageSet& real = sets.front();
-    print_coverage(real);
-    // The default threshold first (the full table), then the operating points.
+// The real images judged by a model trained on them: a fit, not a validation.
+void judge_real_fit(const ImageSet& real, const ClassifySample& model, const char* title) {
+  Score fit;
+  evaluate(real, model, std::vector<bool>(real.images.size(), true), default_min_score(), fit);
+  print_score(title, fit, true);
+}
+
+void judge_tests(const std::vector<ImageSet>& tests, const ClassifySample& model) {
+  for (const auto& test : tests) {
+    print_coverage(test);
+    Score score;
+    evaluate(test, model, std::vector<bool>(test.images.size(), true), default_min_score(), score);
+    print_score(("Simulator test set " + test.dir + " (never trained on):").c_str(), score, false);
+  }
+}
+
+// --dump DIR: the candidates for train_cnn.py, and the MLPs' probabilities
+// (DIR/mlp/) for the blend judged with --scores.
+void dump_candidates(const Options& o, const Sets& sets) {
+  std::error_code made;
+  std::filesystem::create_directories(o.dump_dir + "/mlp", made);
+  if (made) markloop::tools::fail_run(o.dump_dir + "/mlp: cannot create the directory: " + made.message());
+  markloop::tools::OutputFile index;
+  std::string error;
+  if (!index.open(o.dump_dir + "/sets.txt", error)) markloop::tools::fail_run(error);
+  for (std::size_t k = 0; k < sets.train.size(); ++k) {
+    dump_set(sets.train[k], o.dump_dir + "/train" + std::to_string(k), o.folds);
+    std::fprintf(index.get(), "train%zu %s %zu\n", k, sets.train[k].dir.c_str(),
+                 sets.train[k].samples.size());
+  }
+  for (std::size_t k = 0; k < sets.tests.size(); ++k) {
+    dump_set(sets.tests[k], o.dump_dir + "/test" + std::to_string(k), o.folds);
+    std::fprintf(index.get(), "test%zu %s %zu\n", k, sets.tests[k].dir.c_str(), sets.tests[k].samples.size());
+  }
+  if (!index.close(error)) markloop::tools::fail_run(error);
+  // The patches written must be those the detector classified.
+  if (g_patch_mismatches > 0)
+    fail(std::to_string(g_patch_mismatches) + " candidates' patches do not give their features");
+}
+
+// The probabilities written by --dump (MLPs, the first DIR) and
+// train_cnn.py (a network per further DIR) for `set` (file NAME.probs.f32
+// in each), blended as the detector blends them (blend_with_networks, where
+// networks_needed). One DIR alone is taken as it is.
+std::vector<float> blended_probabilities(const ImageSet& set, const std::string& name,
+                                         const std::vector<std::string>& scores_dirs) {
+  std::vector<std::vector<float>> by_dir(scores_dirs.size());
+  for (std::size_t d = 0; d < scores_dirs.size(); ++d)
+    read_probabilities(set, scores_dirs[d] + "/" + name + ".probs.f32", by_dir[d]);
+  const DetectorConfig defaults;
+  std::vector<float> blended = by_dir.front();
+  std::vector<std::array<float, kClassifierOutputs>> networks(by_dir.size() - 1);
+  for (std::size_t at = 0; at < blended.size(); at += kClassifierOutputs) {
+    std::array<float, kClassifierOutputs> sample;
+    std::copy_n(blended.begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs, sample.begin());
+    if (networks.empty() || !networks_needed(sample, defaults.cnn_share, defaults.skip_networks_at)) continue;
+    for (std::size_t m = 0; m < networks.size(); ++m)
+      std::copy_n(by_dir[m + 1].begin() + static_cast<std::ptrdiff_t>(at), kClassifierOutputs,
+                  networks[m].begin());
+    blend_with_networks(sample, networks, defaults.cnn_share);
+    std::copy(sample.begin(), sample.end(), blended.begin() + static_cast<std::ptrdiff_t>(at));
+  }
+  return blended;
+}
+
+// --scores: the probabilities given, blended, judged on the real images
+// (their cross-validation) and the test sets.
+void judge_scores(const Options& o, const Sets& sets) {
+  const float min_score = default_min_score();
+  if (!o.real_dir.empty()) {
+    const ImageSet& real = sets.train.front();
     const std::vector<float> thresholds = {min_score, 0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
     std::vector<Score> by_threshold(thresholds.size());
-    std::vector<float> cv_probabilities;  // each real candidate's, by the model that held it out
-    for (int fold = 0; fold < folds; ++fold) {
-      const auto data = training(fold);
-      const std::vector<Mlp> members = train_members(data, options);
-      std::vector<bool> use(real.images.size(), false);
-      for (std::size_t i = 0; i < real.images.size(); ++i)
-        use[i] = fold_of(train::clip_of(real.images[i].name), folds) == fold;
-      evaluate(real, view(members), use, thresholds, by_threshold);
-      if (!dump_dir.empty()) {
-        std::vector<float> fold_probabilities;
-        write_probabilities(
-            real, by_model(view(members)),
-            [&](const Sample& s) { return !s.augmented && fold_of(s.clip, folds) == fold; },
-            fold_probabilities);
-        if (cv_probabilities.empty()) cv_probabilities.assign(fold_probabilities.size(), 0.0f);
-        for (std::size_t i = 0; i < fold_probabilities.size(); ++i)
-          cv_probabilities[i] += fold_probabilities[i];
-      }
-      std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
-    }
-    char title[160];
-    std::snprintf(title, sizeof title,
-                  "Real images, %d-fold cross-validation by clip (each clip judged by a model "
-                  "trained without it):",
-                  folds);
-    print_score(title, by_threshold.front(), true);
+    print_coverage(real);
+    const std::vector<float> blended = blended_probabilities(real, "train0", o.scores_dirs);
+    evaluate(real, by_probabilities(real, blended), std::vector<bool>(real.images.size(), true), thresholds,
+             by_threshold);
+    print_score("Real images, cross-validation by clip, the probabilities given blended:",
+                by_threshold.front(), true);
     print_operating_points(std::span(thresholds).subspan(1), std::span(by_threshold).subspan(1));
-    if (!dump_dir.empty()) write_raw(dump_dir + "/mlp/train0.probs.f32", cv_probabilities);
   }
+  for (std::size_t k = 0; k < sets.tests.size(); ++k) {
+    const ImageSet& test = sets.tests[k];
+    Score score;
+    print_coverage(test);
+    const std::vector<float> blended = blended_probabilities(test, "test" + std::to_string(k), o.scores_dirs);
+    evaluate(test, by_probabilities(test, blended), std::vector<bool>(test.images.size(), true), min_score,
+             score);
+    print_score(("Simulator test set " + test.dir + ", the probabilities given blended:").c_str(), score,
+                false);
+  }
+}
 
-  const auto data = training(-1);
-  const std::vector<Mlp> members = train_members(data, options);
-  if (std::getenv("MARKLOOP_TRAIN_SHOW_FIT") != nullptr && !real_dir.empty())
-    judge_real_fit(by_model(view(members)), "Real images, training fit (not a validation):");
-  judge_tests(by_model(view(members)));
-  for (std::size_t k = 0; k < tests.size() && !dump_dir.empty(); ++k) {
+// --evaluate-builtin: the compiled-in model as the detector classifies (the
+// MLPs blended with the networks).
+void judge_builtin(const Options& o, const Sets& sets) {
+  const ClassifySample model = [](const Sample& s, std::array<float, kClassifierOutputs>& p) {
+    PatchScratch patch;
+    patch.grey = s.grey;
+    for (std::size_t i = 0; i < patch.paint.size(); ++i) patch.paint[i] = s.paint[i] * (1.0f / 255.0f);
+    CnnScratch scratch;
+    const DetectorConfig defaults;
+    return classify(builtin_marking_model(), &builtin_marking_cnn(), defaults.cnn_share,
+                    defaults.skip_networks_at, s.features, patch, scratch, p);
+  };
+  if (!o.real_dir.empty()) {
+    print_coverage(sets.train.front());
+    judge_real_fit(sets.train.front(), model,
+                   "Real images, the built-in model (trained on them: a fit, not a validation):");
+  }
+  judge_tests(sets.tests, model);
+}
+
+// The training samples: every labelled one, less the real images of the
+// fold held out (-1: none).
+std::vector<const Sample*> training_data(const std::vector<ImageSet>& sets, int held_out_fold, int folds) {
+  std::vector<const Sample*> data;
+  for (const auto& set : sets)
+    for (const Sample& s : set.samples) {
+      if (s.label < 0) continue;
+      if (held_out_fold >= 0 && s.real && fold_of(s.clip, folds) == held_out_fold) continue;
+      data.push_back(&s);
+    }
+  return data;
+}
+
+// Cross-validation by clip on the real images: each fold judged by a model
+// trained without it; with --dump, the probabilities so found.
+void cross_validate(const Options& o, const Sets& sets) {
+  const ImageSet& real = sets.train.front();
+  print_coverage(real);
+  // The default threshold first (the full table), then the operating points.
+  const std::vector<float> thresholds = {default_min_score(), 0.5f, 0.6f, 0.7f, 0.8f, 0.9f};
+  std::vector<Score> by_threshold(thresholds.size());
+  std::vector<float> cv_probabilities;  // each real candidate's, by the model that held it out
+  for (int fold = 0; fold < o.folds; ++fold) {
+    const auto data = training_data(sets.train, fold, o.folds);
+    const std::vector<Mlp> members = train_members(data, o.train);
+    std::vector<bool> use(real.images.size(), false);
+    for (std::size_t i = 0; i < real.images.size(); ++i)
+      use[i] = fold_of(train::clip_of(real.images[i].name), o.folds) == fold;
+    evaluate(real, view(members), use, thresholds, by_threshold);
+    if (!o.dump_dir.empty()) {
+      std::vector<float> fold_probabilities;
+      write_probabilities(
+          real, by_model(view(members)),
+          [&](const Sample& s) { return !s.augmented && fold_of(s.clip, o.folds) == fold; },
+          fold_probabilities);
+      if (cv_probabilities.empty()) cv_probabilities.assign(fold_probabilities.size(), 0.0f);
+      for (std::size_t i = 0; i < fold_probabilities.size(); ++i)
+        cv_probabilities[i] += fold_probabilities[i];
+    }
+    std::printf("fold %d: trained on %zu candidates\n", fold, data.size());
+  }
+  char title[160];
+  std::snprintf(title, sizeof title,
+                "Real images, %d-fold cross-validation by clip (each clip judged by a model "
+                "trained without it):",
+                o.folds);
+  print_score(title, by_threshold.front(), true);
+  print_operating_points(std::span(thresholds).subspan(1), std::span(by_threshold).subspan(1));
+  if (!o.dump_dir.empty()) write_raw(o.dump_dir + "/mlp/train0.probs.f32", cv_probabilities);
+}
+
+// The model trained on all training data: judged on the test sets, its
+// probabilities dumped, written with --out.
+void train_final(const Options& o, const Sets& sets) {
+  const auto data = training_data(sets.train, -1, o.folds);
+  const std::vector<Mlp> members = train_members(data, o.train);
+  if (std::getenv("MARKLOOP_TRAIN_SHOW_FIT") != nullptr && !o.real_dir.empty())
+    judge_real_fit(sets.train.front(), by_model(view(members)),
+                   "Real images, training fit (not a validation):");
+  judge_tests(sets.tests, by_model(view(members)));
+  for (std::size_t k = 0; k < sets.tests.size() && !o.dump_dir.empty(); ++k) {
     std::vector<float> test_probabilities;
     write_probabilities(
-        tests[k], by_model(view(members)), [](const Sample&) { return true; }, test_probabilities);
-    write_raw(dump_dir + "/mlp/test" + std::to_string(k) + ".probs.f32", test_probabilities);
+        sets.tests[k], by_model(view(members)), [](const Sample&) { return true; }, test_probabilities);
+    write_raw(o.dump_dir + "/mlp/test" + std::to_string(k) + ".probs.f32", test_probabilities);
   }
-  if (!out.empty()) {
-    write_model(members, out, command, data.size());
-    std::printf("\nwrote %s (%zu training candidates)\n", out.c_str(), data.size());
+  if (!o.out.empty()) {
+    write_model(members, o.out, o.command, data.size());
+    std::printf("\nwrote %s (%zu training candidates)\n", o.out.c_str(), data.size());
   }
+}
+
+int train_main(int argc, char** argv) {
+  fix_matrix_product_blocking();  // before any training thread starts
+  const Options options = parse_options(argc, argv);
+  if (options.help) {
+    std::fputs(usage().c_str(), stdout);
+    return 0;
+  }
+  check_options(options);
+  const Sets sets = load_sets(options);
+  if (!options.dump_dir.empty()) dump_candidates(options, sets);
+  if (!options.scores_dirs.empty()) {
+    judge_scores(options, sets);
+    return 0;
+  }
+  if (options.evaluate_builtin) {
+    judge_builtin(options, sets);
+    return 0;
+  }
+  if (!options.real_dir.empty() && options.folds > 1) cross_validate(options, sets);
+  train_final(options, sets);
   return 0;
 }
 
