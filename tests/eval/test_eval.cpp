@@ -35,6 +35,20 @@ fs::path fresh_dir(const std::string& name) {
   return dir;
 }
 
+// The CAN log at `path`, which must be read.
+EcuCanLog read_log(const fs::path& path, const DriveTimes* drive = nullptr) {
+  Result<EcuCanLog> log = read_ecu_can_log(path, drive);
+  INFO((log ? std::string() : log.message()));
+  REQUIRE(log);
+  return std::move(log).value();
+}
+
+// Why the CAN log at `path` cannot be read; empty when it can.
+std::string read_error(const fs::path& path, const DriveTimes* drive = nullptr) {
+  const Result<EcuCanLog> log = read_ecu_can_log(path, drive);
+  return log ? std::string() : log.message();
+}
+
 Label label_of(std::string_view name) {
   return *perception::marking_class_from_name(name);
 }
@@ -45,7 +59,7 @@ TEST_CASE("the ECU's CAN log is reassembled and its bad frames counted") {
   const fs::path dir = fresh_dir("can");
   EcuCanLog log;
   std::string error;
-  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  log = read_log(dir / "ecu-can.log");
   constexpr std::size_t kStatusFrames = 3 * dbc::Status::kPages.size();  // three cycles
   CHECK(log.frames == 19 + kStatusFrames);
   CHECK(log.other_frames == 1);
@@ -78,7 +92,7 @@ TEST_CASE("loop detections are judged against the truth") {
   REQUIRE(replay::load_truth(dir / "frames.csv", route, error, &times));
   REQUIRE(times.size() == fixture::kFrames);
   EcuCanLog log;
-  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  log = read_log(dir / "ecu-can.log");
   const replay::TruthJudge judge(route, 5.0, 100.0);
   const LoopScore score = score_loops(judge, times, log.loops);
 
@@ -441,7 +455,8 @@ TEST_CASE("malformed inputs are reported with file and line") {
                       "(0000000001.000000) vcan0 2A0#0011223344556677\n"
                       "(0000000001.000100) vcan0 2A0#00112233445566ZZ\n");
   EcuCanLog log;
-  CHECK_FALSE(read_ecu_can_log(dir / "c.log", log, error));
+  error = read_error(dir / "c.log");
+  CHECK_FALSE(error.empty());
   CHECK_THAT(error, StartsWith((dir / "c.log").string() + ":2:"));
 }
 
@@ -454,20 +469,22 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
 
   // Stamps on the wall clock: refused at the first line, with the drive's span.
   fixture::write_text(path, "(1733130000.100000) vcan0 2B0#0011223344556677\n");
-  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  error = read_error(path, &drive);
+  CHECK_FALSE(error.empty());
   CHECK_THAT(error,
              StartsWith(path + ":1: stamp 1733130000.100000 s lies outside the drive (0.000 to 79.900 s"));
   // ... but read without a drive to hold them against.
-  CHECK(read_ecu_can_log(path, log, error));
+  log = read_log(path);
   // Within the allowance either side of the drive.
   fixture::write_text(path,
                       "(0000000000.000000) vcan0 2B0#0011223344556677\n"
                       "(0000000139.900000) vcan0 2B0#0011223344556677\n");
-  CHECK(read_ecu_can_log(path, log, error, &drive));
+  log = read_log(path, &drive);
   fixture::write_text(path,
                       "(0000000000.000000) vcan0 2B0#0011223344556677\n"
                       "(0000000140.000000) vcan0 2B0#0011223344556677\n");
-  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  error = read_error(path, &drive);
+  CHECK_FALSE(error.empty());
   CHECK_THAT(error, StartsWith(path + ":2: stamp 140.000000 s lies outside the drive"));
 
   // Going back in time.
@@ -475,7 +492,8 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
                       "(0000000002.000000) vcan0 2B0#0011223344556677\n"
                       "(0000000002.000000) vcan0 2B0#0011223344556677\n"
                       "(0000000001.999999) vcan0 2B0#0011223344556677\n");
-  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  error = read_error(path, &drive);
+  CHECK_FALSE(error.empty());
   CHECK_THAT(error, StartsWith(path + ":3: stamp 1.999999 s is before the line above's 2.000000 s"));
 
   // A last line cut short (no newline, too few bytes on an ECU id) is an
@@ -483,14 +501,15 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
   fixture::write_text(path,
                       "(0000000001.000000) vcan0 120#0011223344556677\n"
                       "(0000000001.000000) vcan0 2A0#0011223344");
-  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  error = read_error(path, &drive);
+  CHECK_FALSE(error.empty());
   CHECK(error == path +
                      ":2: the last line is cut short: no newline at its end, and its frame has 5 bytes "
                      "where the ECU sends 8 (was the log cut?)");
   fixture::write_text(path,
                       "(0000000001.000000) vcan0 120#0011223344556677\n"
                       "(0000000001.000000) vcan0 2A0#0011223344\n");
-  REQUIRE(read_ecu_can_log(path, log, error, &drive));
+  log = read_log(path, &drive);
   CHECK(log.loop_frames.wrong_length == 1);
   CHECK(can_log_warnings(path, log) ==
         std::vector<std::string>{path +
@@ -498,14 +517,14 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
                                  "5 bytes, the DBC's 8): rejected, counted under 'length'"});
   // Another id's frame without a newline is no ECU frame to judge.
   fixture::write_text(path, "(0000000001.000000) vcan0 120#0011");
-  REQUIRE(read_ecu_can_log(path, log, error, &drive));
+  log = read_log(path, &drive);
   CHECK(can_log_warnings(path, log) ==
         std::vector<std::string>{path +
                                  ": no LoopDetection or Status frame: is this the ECU's log? (its one frame "
                                  "is of another id)"});
 
   // The fixture's own log: nothing to say.
-  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error, &drive));
+  log = read_log(dir / "ecu-can.log", &drive);
   CHECK(can_log_warnings(dir / "ecu-can.log", log).empty());
 }
 
@@ -518,12 +537,12 @@ TEST_CASE("the picture is written as SVG and PNG") {
   REQUIRE(replay::load_truth(dir / "frames.csv", route, error, &times));
   REQUIRE(load_world_markings(dir / "markings.csv", world, error));
   EcuCanLog log;
-  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  log = read_log(dir / "ecu-can.log");
   const replay::TruthJudge judge(route, 5.0, 100.0);
   const LoopScore score = score_loops(judge, times, log.loops);
   FigureContent content{&route, &world, &score.outcomes, "title & <figures>", "subtitle"};
-  REQUIRE(write_svg(dir / "loops.svg", content, error));
-  REQUIRE(write_png(dir / "loops.png", content, error));
+  REQUIRE(write_svg(dir / "loops.svg", content));
+  REQUIRE(write_png(dir / "loops.png", content));
   CHECK(fs::file_size(dir / "loops.png") > 1000);
   std::string svg;
   {
@@ -540,6 +559,7 @@ TEST_CASE("the picture is written as SVG and PNG") {
   CHECK(svg.find(">crosswalk<") != std::string::npos);         // legend
   CHECK(svg.ends_with("</svg>\n"));
 
-  CHECK_FALSE(write_png((dir / "no-such-dir" / "x.png").string(), content, error));
-  CHECK_THAT(error, StartsWith((dir / "no-such-dir" / "x.png").string()));
+  const Status unwritten = write_png((dir / "no-such-dir" / "x.png").string(), content);
+  REQUIRE_FALSE(unwritten);
+  CHECK_THAT(unwritten.message(), StartsWith((dir / "no-such-dir" / "x.png").string()));
 }

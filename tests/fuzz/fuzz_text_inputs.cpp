@@ -34,8 +34,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   poses.clear();
   error.clear();
   expect_named(replay::load_truth(path, poses, error, &times), error, path);
-  eval::EcuCanLog log;
-  error.clear();
-  expect_named(eval::read_ecu_can_log(path, log, error), error, path);
+  const Result<eval::EcuCanLog> log = eval::read_ecu_can_log(path);
+  expect_named(log.ok(), log.ok() ? std::string() : log.message(), path);
   return 0;
 }
