@@ -1,6 +1,7 @@
 // markloop-eval: judges a run of the ECU against the simulator's truth: loop
 // precision and revisit recall, relative pose error, latency on the bus, and
 // marking detection/classification; draws the run as SVG and PNG.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -143,6 +144,8 @@ Options parse(int argc, char** argv) {
   // The options before --help are checked as given, as without it.
   for (const ParsedArgs::Given& given : args.given()) apply_option(given.name, given.value, o);
   const auto& dirs = args.positional();
+  // A lone "-" is no directory: standard input is not read.
+  if (std::find(dirs.begin(), dirs.end(), "-") != dirs.end()) fail("unknown option - (see --help)");
   if (dirs.size() > 1)
     fail("more than one DIR given: '" + std::string(dirs[0]) + "' and '" + std::string(dirs[1]) + "'");
   if (args.help()) {
