@@ -28,6 +28,21 @@ using Catch::Matchers::StartsWith;
 
 namespace {
 
+// The value of a load that must succeed.
+template <class T>
+T loaded(markloop::Result<T> result) {
+  INFO((result ? std::string() : result.message()));
+  REQUIRE(result);
+  return std::move(result).value();
+}
+
+// The message of a load that must fail.
+template <class T>
+std::string error_of(const markloop::Result<T>& result) {
+  REQUIRE_FALSE(result);
+  return result.message();
+}
+
 fs::path fresh_dir(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("markloop-eval-test-" + name);
   fs::remove_all(dir);
@@ -89,7 +104,11 @@ TEST_CASE("loop detections are judged against the truth") {
   std::vector<Pose2> route;
   std::vector<double> times;
   std::string error;
-  REQUIRE(replay::load_truth(dir / "frames.csv", route, error, &times));
+  {
+    auto truth = loaded(replay::load_truth(dir / "frames.csv"));
+    route = std::move(truth.poses);
+    times = std::move(truth.times);
+  }
   REQUIRE(times.size() == fixture::kFrames);
   EcuCanLog log;
   log = read_log(dir / "ecu-can.log");
@@ -194,8 +213,8 @@ TEST_CASE("marking detections are matched to visible markings one to one") {
   std::vector<VisibleMarking> visible;
   std::vector<DetectionRecord> detections;
   std::string error;
-  REQUIRE(load_visible(dir / "visible.csv", fixture::kFrames, visible, error));
-  REQUIRE(load_detections(dir / "ecu-detections.csv", fixture::kFrames, detections, error));
+  visible = loaded(load_visible(dir / "visible.csv", fixture::kFrames));
+  detections = loaded(load_detections(dir / "ecu-detections.csv", fixture::kFrames));
   const MarkingScore m = score_markings(visible, detections);
   CHECK(m.truth == 4);
   CHECK(m.detections == 5);
@@ -413,42 +432,42 @@ TEST_CASE("malformed inputs are reported with file and line") {
   fixture::write_text(dir / "v.csv",
                       "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n1,0,stop,0,0,1,0,1,1,0,1\n"
                       "2,1,bogus,0,0,1,0,1,1,0,1\n");
-  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  error = error_of(load_visible(dir / "v.csv", 10));
   CHECK(error == (dir / "v.csv").string() + ":3: class 'bogus' is not a marking class");
 
   fixture::write_text(dir / "v.csv", "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n10,0,stop,0,0,1,0,1,1,0,1\n");
-  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  error = error_of(load_visible(dir / "v.csv", 10));
   CHECK(error == (dir / "v.csv").string() + ":2: frame 10 is beyond the truth's 10 frames (frames.csv)");
 
   fixture::write_text(dir / "v.csv", "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n1,0,stop,0,0,1,0,1,1,0\n");
-  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  error = error_of(load_visible(dir / "v.csv", 10));
   CHECK_THAT(error, StartsWith((dir / "v.csv").string() + ":2: expected 11 comma-separated fields"));
 
   fixture::write_text(dir / "d.csv",
                       "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
                       "1,stop,0.5,0,0,1,0,1,1,0,1,2,3\n1,stop,1.5,0,0,1,0,1,1,0,1,2,3\n");
-  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  error = error_of(load_detections(dir / "d.csv", 10));
   CHECK(error == (dir / "d.csv").string() + ":3: score 1.5 is outside [0, 1]");
 
   fixture::write_text(dir / "d.csv",
                       "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
                       "1.5,stop,0.5,0,0,1,0,1,1,0,1,2,3\n");
-  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  error = error_of(load_detections(dir / "d.csv", 10));
   CHECK_THAT(error, StartsWith((dir / "d.csv").string() + ":2: frame is not a whole number"));
 
   fixture::write_text(dir / "d.csv",
                       "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
                       "1,stop,0.5,0,0,1,0,1,1,0,nan,2,3\n");
-  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  error = error_of(load_detections(dir / "d.csv", 10));
   CHECK(error == (dir / "d.csv").string() + ":2: y4 is not a finite number: 'nan'");
 
   fixture::write_text(dir / "m.csv", "id,class,x,y\n");
-  CHECK_FALSE(load_world_markings(dir / "m.csv", world, error));
+  error = error_of(load_world_markings(dir / "m.csv"));
   CHECK(error == (dir / "m.csv").string() + ":1: expected the header 'id,class,x,y,heading'");
 
-  CHECK_FALSE(load_world_markings(dir / "absent.csv", world, error));
+  error = error_of(load_world_markings(dir / "absent.csv"));
   CHECK(error == (dir / "absent.csv").string() + ": cannot open: No such file or directory");
-  CHECK_FALSE(load_world_markings(dir, world, error));
+  error = error_of(load_world_markings(dir));
   CHECK(error == dir.string() + ": is a directory, not a CSV file");
 
   fixture::write_text(dir / "c.log",
@@ -534,8 +553,12 @@ TEST_CASE("the picture is written as SVG and PNG") {
   std::vector<double> times;
   std::vector<WorldMarking> world;
   std::string error;
-  REQUIRE(replay::load_truth(dir / "frames.csv", route, error, &times));
-  REQUIRE(load_world_markings(dir / "markings.csv", world, error));
+  {
+    auto truth = loaded(replay::load_truth(dir / "frames.csv"));
+    route = std::move(truth.poses);
+    times = std::move(truth.times);
+  }
+  world = loaded(load_world_markings(dir / "markings.csv"));
   EcuCanLog log;
   log = read_log(dir / "ecu-can.log");
   const replay::TruthJudge judge(route, 5.0, 100.0);

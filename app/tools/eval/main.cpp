@@ -338,12 +338,20 @@ struct Run {
   PassScore passes;
 };
 
+// The value of `loaded`, or fail with its error.
+template <class T>
+T or_fail(Result<T> loaded) {
+  if (!loaded) fail(loaded.message());
+  return std::move(loaded).value();
+}
+
 // Truth: frames.csv must be the simulator's, with its header (KITTI poses
 // carry no times).
 void load_route(Run& r) {
   const std::string frames_path = std::filesystem::path(r.o.dir) / "frames.csv";
-  std::string error;
-  if (!replay::load_frames_csv(frames_path, r.route, r.times, error)) fail(error);
+  replay::TruePoses truth = or_fail(replay::load_frames_csv(frames_path));
+  r.route = std::move(truth.poses);
+  r.times = std::move(truth.times);
   if (r.route.empty()) fail(frames_path + ": no frames");
   for (std::size_t i = 1; i < r.times.size(); ++i)
     if (!(r.times[i] > r.times[i - 1]))
@@ -354,9 +362,7 @@ void load_route(Run& r) {
 // The log's stamps must be the drive's clock (frames.csv's times).
 void load_can_log(Run& r) {
   const DriveTimes drive{r.times.empty() ? 0.0 : r.times.front(), r.times.empty() ? 0.0 : r.times.back()};
-  Result<EcuCanLog> log = read_ecu_can_log(r.o.can, r.times.empty() ? nullptr : &drive);
-  if (!log) fail(log.message());
-  r.log = std::move(log).value();
+  r.log = or_fail(read_ecu_can_log(r.o.can, r.times.empty() ? nullptr : &drive));
   for (const std::string& warning : can_log_warnings(r.o.can, r.log))
     std::fprintf(stderr, "%s: warning: %s\n", program_name(), warning.c_str());
 }
@@ -365,19 +371,17 @@ void load_can_log(Run& r) {
 // default file is absent.
 void load_ecu_outputs(Run& r) {
   const Options& o = r.o;
-  std::string error;
   if (!o.detections_given && !std::filesystem::exists(o.detections)) {
     r.marking_note = o.detections + " not found: marking detection not evaluated";
   } else {
-    if (!load_detections(o.detections, r.route.size(), r.detections, error)) fail(error);
-    if (!load_visible(std::filesystem::path(o.dir) / "visible.csv", r.route.size(), r.visible, error))
-      fail(error);
+    r.detections = or_fail(load_detections(o.detections, r.route.size()));
+    r.visible = or_fail(load_visible(std::filesystem::path(o.dir) / "visible.csv", r.route.size()));
     r.have_markings = true;
   }
   if (!o.landmarks_given && !std::filesystem::exists(o.landmarks)) {
     r.landmark_note = o.landmarks + " not found: landmarks not evaluated";
   } else {
-    if (!load_landmarks(o.landmarks, r.route.size(), r.landmarks, error)) fail(error);
+    r.landmarks = or_fail(load_landmarks(o.landmarks, r.route.size()));
     r.have_landmarks = true;
   }
   r.have_passes = r.have_landmarks && r.have_markings;
@@ -743,8 +747,7 @@ int main(int argc, char** argv) {
   r.o = parse(argc, argv);
   check_outputs(r.o);
   load_route(r);
-  std::string error;
-  if (!load_world_markings(std::filesystem::path(r.o.dir) / "markings.csv", r.world, error)) fail(error);
+  r.world = or_fail(load_world_markings(std::filesystem::path(r.o.dir) / "markings.csv"));
   load_can_log(r);
   load_ecu_outputs(r);
   score(r);
@@ -754,6 +757,7 @@ int main(int argc, char** argv) {
     if (const Status written = write_json(r.o.json, r); !written) tools::fail_run(written.message());
     std::printf("figures: %s\n", r.o.json.c_str());
   }
+  std::string error;
   if (!tools::flush_stdout(error)) tools::fail_run(error);
   return kExitOk;
 }

@@ -433,21 +433,27 @@ struct Replay {
   LabelTable labels;
 };
 
+// The value of `loaded`, or fail with its error.
+template <class T>
+T or_fail(Result<T> loaded) {
+  if (!loaded) fail(loaded.message());
+  return std::move(loaded).value();
+}
+
 void load_inputs(Replay& r) {
   const Options& o = r.o;
-  std::string error;
-  if (!load_markings(o.markings, r.records, error)) fail(error);
+  r.records = or_fail(load_markings(o.markings));
   warn_unordered(o.markings, r.records);
   if (!o.poses.empty()) {
-    if (!load_kitti_poses(o.poses, r.poses, error)) fail(error);
+    r.poses = or_fail(load_kitti_poses(o.poses));
     check_covers(o.poses, r.poses.size(), "pose", o, r.records);
   }
   if (!o.compat) check_database_fits(o);
   if (o.truth.empty()) return;
-  std::vector<Pose2> truth;
-  if (!load_truth(o.truth, truth, error)) fail(error);
-  check_covers(o.truth, truth.size(), "true pose", o, r.records);
-  r.judge = std::make_unique<TruthJudge>(std::move(truth), o.truth_radius, o.engine.match.min_separation_m);
+  TruePoses truth = or_fail(load_truth(o.truth));
+  check_covers(o.truth, truth.poses.size(), "true pose", o, r.records);
+  r.judge =
+      std::make_unique<TruthJudge>(std::move(truth.poses), o.truth_radius, o.engine.match.min_separation_m);
 }
 
 // Opens `path`, lets `write` fill it, and closes it; a failed write fails the run.
