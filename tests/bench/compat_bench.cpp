@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "app/common/cli.hpp"
 #include "app/tools/replay/compat.hpp"
 
 namespace {
@@ -151,34 +152,28 @@ constexpr const char* kUsage =
 
 }  // namespace
 
+constexpr markloop::cli::OptionSpec kOptions[] = {
+    {"--drives", "N", "drives in the largest run (at least 8)"},
+    {"--limit", "S", "skip the reference where it would pass S seconds"},
+    {"--write", "FILE", "also write the N drives in the paper's format"},
+};
+
 int main(int argc, char** argv) {
-  int drives = 200;
-  double limit_s = 60;
-  std::string write;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    if (i + 1 < argc && arg == "--drives")
-      drives = std::atoi(argv[++i]);
-    else if (i + 1 < argc && arg == "--limit")
-      limit_s = std::atof(argv[++i]);
-    else if (i + 1 < argc && arg == "--write")
-      write = argv[++i];
-    else {
-      std::fprintf(stderr, "markloop-compat-bench: unknown option %s (see --help)\n", argv[i]);
-      return 2;
-    }
+  markloop::cli::program_name() = "markloop-compat-bench";
+  const auto args = markloop::cli::parse_args_or_fail(argc, argv, kOptions);
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    return markloop::cli::kExitOk;
   }
-  if (drives < 8) {
-    std::fputs("markloop-compat-bench: --drives must be at least 8\n", stderr);
-    return 2;
-  }
+  const std::string drives_text(args.value("--drives").value_or("200"));
+  const std::string limit_text(args.value("--limit").value_or("60"));
+  const int drives = std::atoi(drives_text.c_str());
+  const double limit_s = std::atof(limit_text.c_str());
+  const std::string write(args.value("--write").value_or(""));
+  if (drives < 8) markloop::cli::fail("--drives must be at least 8");
   if (!write.empty() && !write_markings(write, synthetic_drives(drives, 1))) {
     std::fprintf(stderr, "markloop-compat-bench: %s: cannot write\n", write.c_str());
-    return 1;
+    return markloop::cli::kExitOutputFailed;
   }
   std::printf(
       "k = 4, T = 30 frames, tolerance 2 m; wall time; reference = all pairs, indexed = "
@@ -208,5 +203,6 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
     all_same = all_same && r.same;
   }
-  return all_same ? 0 : 1;
+  // Status 1: the two programs disagree, a result that failed.
+  return all_same ? markloop::cli::kExitOk : markloop::cli::kExitOutputFailed;
 }

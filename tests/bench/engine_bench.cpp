@@ -8,11 +8,13 @@
 #include <cstdio>
 #include <cstdlib>
 #include <random>
+#include <string>
 #include <string_view>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "app/common/cli.hpp"
 #include "app/engine/rigid_alignment.hpp"
 #include "app/engine/sequence_database.hpp"
 
@@ -96,115 +98,146 @@ struct Row {
   double candidates_per_query;
 };
 
-Row measure(std::size_t size, std::size_t samples, std::size_t naive_samples) {
-  DatabaseConfig dc;
-  dc.sequence_capacity = size;
-  dc.landmark_capacity = size;
-  MatchConfig mc;
-  SequenceDatabase db(dc, mc, kK);
-  NaiveMatcher naive;
-  naive.tolerance = static_cast<float>(mc.distance_tolerance_abs_m);
-  naive.entries.reserve(size);
+// A database of one size, filled from a landmark stream, next to the naive
+// matcher holding the same sequences.
+class Bench {
+ public:
+  explicit Bench(std::size_t size) : db_(config(size), mc_, kK), size_(size) {
+    naive_.tolerance = static_cast<float>(mc_.distance_tolerance_abs_m);
+    naive_.entries.reserve(size);
+  }
 
-  LandmarkStream stream(42);
-  std::vector<LandmarkId> recent;
-  std::array<LandmarkId, kK> ids{};
-  const auto add_next = [&](SequenceShape& shape) {
-    recent.push_back(db.add_landmark(stream.next()));
-    if (recent.size() > kK) recent.erase(recent.begin());
-    if (recent.size() < kK) return false;
-    std::copy(recent.begin(), recent.end(), ids.begin());
-    return db.shape_of(ids, shape);
-  };
-
-  SequenceShape shape;
-  std::size_t stored = 0;
-  while (stored < size) {
-    if (!add_next(shape)) continue;
-    db.add_sequence(ids);
-    naive.entries.push_back(NaiveMatcher::Entry::of(shape));
-    ++stored;
+  void fill() {
+    SequenceShape shape;
+    std::size_t stored = 0;
+    while (stored < size_) {
+      if (!add_next(shape)) continue;
+      db_.add_sequence(ids_);
+      naive_.entries.push_back(NaiveMatcher::Entry::of(shape));
+      ++stored;
+    }
   }
 
   // A new sequence: query (with rigid verification of every candidate), then
   // insert. Half of the queries revisit a stored place, shifted by 0.1 m.
-  std::mt19937_64 pick(7);
-  std::vector<double> indexed_ns, naive_ns;
-  indexed_ns.reserve(samples);
-  std::size_t candidates = 0;
-  std::size_t sink = 0;
-  for (std::size_t s = 0; s < samples; ++s) {
-    if (!add_next(shape)) {
-      --s;
-      continue;
+  void sample(std::size_t samples, std::size_t naive_samples) {
+    std::mt19937_64 pick(7);
+    indexed_ns_.reserve(samples);
+    SequenceShape shape;
+    for (std::size_t s = 0; s < samples; ++s) {
+      while (!add_next(shape)) {
+      }
+      if (s % 2 == 1) revisit(naive_.entries[pick() % naive_.entries.size()], shape);
+      const auto start = Clock::now();
+      query(shape);
+      db_.add_sequence(ids_);
+      indexed_ns_.push_back(std::chrono::duration<double, std::nano>(Clock::now() - start).count());
+      if (s < naive_samples) time_naive(shape, s);
     }
-    if (s % 2 == 1) {
-      const auto& e = naive.entries[pick() % naive.entries.size()];
-      std::copy_n(e.labels.begin(), kK, shape.labels.begin());
-      for (unsigned i = 1; i < kK; ++i) shape.distances[i] = e.distances[i] + 0.1f;
-    }
-    const auto start = Clock::now();
+    if (sink_ == 0) std::fprintf(stderr, "(no candidate verified)\n");
+  }
+
+  Row row(std::size_t samples) {
+    const DatabaseStats stats = db_.stats();
+    Row row;
+    row.size = size_;
+    row.indexed = percentiles(indexed_ns_);
+    row.naive = percentiles(naive_ns_);
+    row.bytes_per_sequence = double(stats.bytes_sequences) / double(stats.sequence_capacity);
+    row.bytes_per_landmark = double(stats.bytes_landmarks) / double(stats.landmark_capacity);
+    row.candidates_per_query = double(candidates_) / double(samples);
+    return row;
+  }
+
+ private:
+  static DatabaseConfig config(std::size_t size) {
+    DatabaseConfig dc;
+    dc.sequence_capacity = size;
+    dc.landmark_capacity = size;
+    return dc;
+  }
+
+  // The next landmark into the database; true with the shape of the last
+  // kK landmarks once there are as many.
+  bool add_next(SequenceShape& shape) {
+    recent_.push_back(db_.add_landmark(stream_.next()));
+    if (recent_.size() > kK) recent_.erase(recent_.begin());
+    if (recent_.size() < kK) return false;
+    std::copy(recent_.begin(), recent_.end(), ids_.begin());
+    return db_.shape_of(ids_, shape);
+  }
+
+  static void revisit(const NaiveMatcher::Entry& e, SequenceShape& shape) {
+    std::copy_n(e.labels.begin(), kK, shape.labels.begin());
+    for (unsigned i = 1; i < kK; ++i) shape.distances[i] = e.distances[i] + 0.1f;
+  }
+
+  void query(const SequenceShape& shape) {
     bool limited = false;
-    db.for_each_match(shape, mc.max_candidates_per_query, limited, [&](std::span<const LandmarkId> match) {
+    db_.for_each_match(shape, mc_.max_candidates_per_query, limited, [&](std::span<const LandmarkId> match) {
       std::array<Eigen::Vector2d, kK> from, to;
       for (unsigned i = 0; i < kK; ++i) {
-        const Landmark* a = db.landmark(match[i]);
-        const Landmark* b = db.landmark(ids[i]);
+        const Landmark* a = db_.landmark(match[i]);
+        const Landmark* b = db_.landmark(ids_[i]);
         from[i] = {a->x, a->y};
         to[i] = {b->x, b->y};
       }
-      sink += fit_rigid_2d(from, to).rms_residual < mc.max_residual_m;
-      ++candidates;
+      sink_ += fit_rigid_2d(from, to).rms_residual < mc_.max_residual_m;
+      ++candidates_;
       return true;
     });
-    db.add_sequence(ids);
-    indexed_ns.push_back(std::chrono::duration<double, std::nano>(Clock::now() - start).count());
-
-    if (s < naive_samples) {
-      const auto naive_start = Clock::now();
-      sink += naive.match(shape);
-      naive.entries[s % size] = NaiveMatcher::Entry::of(shape);  // fixed size, like the database
-      naive_ns.push_back(std::chrono::duration<double, std::nano>(Clock::now() - naive_start).count());
-    }
   }
-  if (sink == 0) std::fprintf(stderr, "(no candidate verified)\n");
 
-  const DatabaseStats stats = db.stats();
-  Row row;
-  row.size = size;
-  row.indexed = percentiles(indexed_ns);
-  row.naive = percentiles(naive_ns);
-  row.bytes_per_sequence = double(stats.bytes_sequences) / double(stats.sequence_capacity);
-  row.bytes_per_landmark = double(stats.bytes_landmarks) / double(stats.landmark_capacity);
-  row.candidates_per_query = double(candidates) / double(samples);
-  return row;
+  void time_naive(const SequenceShape& shape, std::size_t s) {
+    const auto naive_start = Clock::now();
+    sink_ += naive_.match(shape);
+    naive_.entries[s % size_] = NaiveMatcher::Entry::of(shape);  // fixed size, like the database
+    naive_ns_.push_back(std::chrono::duration<double, std::nano>(Clock::now() - naive_start).count());
+  }
+
+  MatchConfig mc_;
+  SequenceDatabase db_;
+  std::size_t size_;
+  NaiveMatcher naive_;
+  LandmarkStream stream_{42};
+  std::vector<LandmarkId> recent_;
+  std::array<LandmarkId, kK> ids_{};
+  std::vector<double> indexed_ns_, naive_ns_;
+  std::size_t candidates_ = 0;
+  std::size_t sink_ = 0;
+};
+
+Row measure(std::size_t size, std::size_t samples, std::size_t naive_samples) {
+  Bench bench(size);
+  bench.fill();
+  bench.sample(samples, naive_samples);
+  return bench.row(samples);
 }
+
+constexpr const char* kUsage =
+    "usage: markloop-bench [--max N]\n\n"
+    "Times a new sequence of k=4 landmarks (query, rigid verification of the\n"
+    "candidates, insert) in the indexed ring-buffer database at 10^3 .. N stored\n"
+    "sequences (default 10^6), next to a naive all-pairs matcher like the paper's,\n"
+    "and reports memory per stored sequence and landmark. Run on an idle machine.\n";
+
+constexpr markloop::cli::OptionSpec kOptions[] = {
+    {"--max", "N", "the largest database, in sequences (at least 1000)"},
+};
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  cli::program_name() = "markloop-bench";
+  const cli::ParsedArgs args = cli::parse_args_or_fail(argc, argv, kOptions);
   std::size_t largest = 1000000;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::puts(
-          "usage: markloop-bench [--max N]\n\n"
-          "Times a new sequence of k=4 landmarks (query, rigid verification of the\n"
-          "candidates, insert) in the indexed ring-buffer database at 10^3 .. N stored\n"
-          "sequences (default 10^6), next to a naive all-pairs matcher like the paper's,\n"
-          "and reports memory per stored sequence and landmark. Run on an idle machine.");
-      return 0;
-    }
-    if (arg == "--max" && i + 1 < argc) {
-      largest = std::strtoull(argv[++i], nullptr, 10);
-      if (largest < 1000) {
-        std::fputs("markloop-bench: --max must be at least 1000\n", stderr);
-        return 2;
-      }
-    } else {
-      std::fprintf(stderr, "markloop-bench: unknown option %s (see --help)\n", argv[i]);
-      return 2;
-    }
+  for (const cli::ParsedArgs::Given& given : args.given()) {
+    largest = std::strtoull(std::string(given.value).c_str(), nullptr, 10);
+    if (largest < 1000) cli::fail("--max must be at least 1000");
+  }
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    return cli::kExitOk;
   }
   std::printf("k = %u; per new sequence; indexed = this engine's database, naive = all-pairs scan\n\n", kK);
   std::printf(
@@ -219,5 +252,5 @@ int main(int argc, char** argv) {
                 r.candidates_per_query, r.bytes_per_sequence, r.bytes_per_landmark);
     std::fflush(stdout);
   }
-  return 0;
+  return cli::kExitOk;
 }

@@ -43,6 +43,11 @@ check "range ends accepted" 0 "^matches: 0" -- "$replay" --markings "$work/one.t
   --min-separation 10000 --min-separation-s 86400 --max-residual 0.001 --association-radius 0.01 --commit-after 100 \
   --min-observations 1000 --skip-rows 0 --landmark-capacity 16 --sequence-capacity 16
 check "bad sweep" 2 "--sweep: expected" -- "$replay" --markings "$work/one.txt" --sweep 5
+# Options before --help are checked as given; after it, not read.
+check "bad value before --help" 2 "^markloop-replay: --k: 11 is outside 2 to 10$" -- "$replay" --k 11 --help
+check "bad value after --help" 0 "usage: markloop-replay" -- "$replay" --help --k 11
+check "stray argument" 2 "^markloop-replay: unexpected argument stray \(see --help\)$" -- \
+  "$replay" --markings "$work/one.txt" stray
 
 # Inputs: a directory, an endless device and poses that stop short are
 # refused by name; a record at the largest frame takes no longer than others.

@@ -11,6 +11,11 @@ check "--help" 0 "usage: markloop-eval DIR" -- "$eval_tool" --help
 check "no DIR" 2 "^markloop-eval: DIR is required" -- "$eval_tool"
 check "unknown option" 2 "unknown option --frobnicate" -- "$eval_tool" "$work" --frobnicate
 check "bad tolerance" 2 "--tolerance: not a number" -- "$eval_tool" "$work" --tolerance five
+# Options before --help are checked as given; two DIRs or a lone "-" are refused.
+check "bad value before --help" 2 "--tolerance: not a number" -- "$eval_tool" --tolerance five --help
+check "two DIRs" 2 "^markloop-eval: more than one DIR given: 'a' and 'b'$" -- "$eval_tool" a b
+check "a lone -" 2 "^markloop-eval: unknown option - \(see --help\)$" -- "$eval_tool" -
+check "missing value" 2 "^markloop-eval: --can needs a value, got the option --json" -- "$eval_tool" "$work" --can --json x
 check "no frames.csv" 2 "$work/frames.csv: cannot open: No such file or directory" -- "$eval_tool" "$work"
 
 run=$(fresh run)

@@ -28,11 +28,40 @@ using Catch::Matchers::StartsWith;
 
 namespace {
 
+// The value of a load that must succeed.
+template <class T>
+T loaded(markloop::Result<T> result) {
+  INFO((result ? std::string() : result.message()));
+  REQUIRE(result);
+  return std::move(result).value();
+}
+
+// The message of a load that must fail.
+template <class T>
+std::string error_of(const markloop::Result<T>& result) {
+  REQUIRE_FALSE(result);
+  return result.message();
+}
+
 fs::path fresh_dir(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("markloop-eval-test-" + name);
   fs::remove_all(dir);
   fixture::write_run(dir);
   return dir;
+}
+
+// The CAN log at `path`, which must be read.
+EcuCanLog read_log(const fs::path& path, const DriveTimes* drive = nullptr) {
+  Result<EcuCanLog> log = read_ecu_can_log(path, drive);
+  INFO((log ? std::string() : log.message()));
+  REQUIRE(log);
+  return std::move(log).value();
+}
+
+// Why the CAN log at `path` cannot be read; empty when it can.
+std::string read_error(const fs::path& path, const DriveTimes* drive = nullptr) {
+  const Result<EcuCanLog> log = read_ecu_can_log(path, drive);
+  return log ? std::string() : log.message();
 }
 
 Label label_of(std::string_view name) {
@@ -45,7 +74,7 @@ TEST_CASE("the ECU's CAN log is reassembled and its bad frames counted") {
   const fs::path dir = fresh_dir("can");
   EcuCanLog log;
   std::string error;
-  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  log = read_log(dir / "ecu-can.log");
   constexpr std::size_t kStatusFrames = 3 * dbc::Status::kPages.size();  // three cycles
   CHECK(log.frames == 19 + kStatusFrames);
   CHECK(log.other_frames == 1);
@@ -75,10 +104,14 @@ TEST_CASE("loop detections are judged against the truth") {
   std::vector<Pose2> route;
   std::vector<double> times;
   std::string error;
-  REQUIRE(replay::load_truth(dir / "frames.csv", route, error, &times));
+  {
+    auto truth = loaded(replay::load_truth(dir / "frames.csv"));
+    route = std::move(truth.poses);
+    times = std::move(truth.times);
+  }
   REQUIRE(times.size() == fixture::kFrames);
   EcuCanLog log;
-  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  log = read_log(dir / "ecu-can.log");
   const replay::TruthJudge judge(route, 5.0, 100.0);
   const LoopScore score = score_loops(judge, times, log.loops);
 
@@ -180,8 +213,8 @@ TEST_CASE("marking detections are matched to visible markings one to one") {
   std::vector<VisibleMarking> visible;
   std::vector<DetectionRecord> detections;
   std::string error;
-  REQUIRE(load_visible(dir / "visible.csv", fixture::kFrames, visible, error));
-  REQUIRE(load_detections(dir / "ecu-detections.csv", fixture::kFrames, detections, error));
+  visible = loaded(load_visible(dir / "visible.csv", fixture::kFrames));
+  detections = loaded(load_detections(dir / "ecu-detections.csv", fixture::kFrames));
   const MarkingScore m = score_markings(visible, detections);
   CHECK(m.truth == 4);
   CHECK(m.detections == 5);
@@ -399,49 +432,50 @@ TEST_CASE("malformed inputs are reported with file and line") {
   fixture::write_text(dir / "v.csv",
                       "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n1,0,stop,0,0,1,0,1,1,0,1\n"
                       "2,1,bogus,0,0,1,0,1,1,0,1\n");
-  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  error = error_of(load_visible(dir / "v.csv", 10));
   CHECK(error == (dir / "v.csv").string() + ":3: class 'bogus' is not a marking class");
 
   fixture::write_text(dir / "v.csv", "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n10,0,stop,0,0,1,0,1,1,0,1\n");
-  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  error = error_of(load_visible(dir / "v.csv", 10));
   CHECK(error == (dir / "v.csv").string() + ":2: frame 10 is beyond the truth's 10 frames (frames.csv)");
 
   fixture::write_text(dir / "v.csv", "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4\n1,0,stop,0,0,1,0,1,1,0\n");
-  CHECK_FALSE(load_visible(dir / "v.csv", 10, visible, error));
+  error = error_of(load_visible(dir / "v.csv", 10));
   CHECK_THAT(error, StartsWith((dir / "v.csv").string() + ":2: expected 11 comma-separated fields"));
 
   fixture::write_text(dir / "d.csv",
                       "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
                       "1,stop,0.5,0,0,1,0,1,1,0,1,2,3\n1,stop,1.5,0,0,1,0,1,1,0,1,2,3\n");
-  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  error = error_of(load_detections(dir / "d.csv", 10));
   CHECK(error == (dir / "d.csv").string() + ":3: score 1.5 is outside [0, 1]");
 
   fixture::write_text(dir / "d.csv",
                       "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
                       "1.5,stop,0.5,0,0,1,0,1,1,0,1,2,3\n");
-  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  error = error_of(load_detections(dir / "d.csv", 10));
   CHECK_THAT(error, StartsWith((dir / "d.csv").string() + ":2: frame is not a whole number"));
 
   fixture::write_text(dir / "d.csv",
                       "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n"
                       "1,stop,0.5,0,0,1,0,1,1,0,nan,2,3\n");
-  CHECK_FALSE(load_detections(dir / "d.csv", 10, detections, error));
+  error = error_of(load_detections(dir / "d.csv", 10));
   CHECK(error == (dir / "d.csv").string() + ":2: y4 is not a finite number: 'nan'");
 
   fixture::write_text(dir / "m.csv", "id,class,x,y\n");
-  CHECK_FALSE(load_world_markings(dir / "m.csv", world, error));
+  error = error_of(load_world_markings(dir / "m.csv"));
   CHECK(error == (dir / "m.csv").string() + ":1: expected the header 'id,class,x,y,heading'");
 
-  CHECK_FALSE(load_world_markings(dir / "absent.csv", world, error));
+  error = error_of(load_world_markings(dir / "absent.csv"));
   CHECK(error == (dir / "absent.csv").string() + ": cannot open: No such file or directory");
-  CHECK_FALSE(load_world_markings(dir, world, error));
+  error = error_of(load_world_markings(dir));
   CHECK(error == dir.string() + ": is a directory, not a CSV file");
 
   fixture::write_text(dir / "c.log",
                       "(0000000001.000000) vcan0 2A0#0011223344556677\n"
                       "(0000000001.000100) vcan0 2A0#00112233445566ZZ\n");
   EcuCanLog log;
-  CHECK_FALSE(read_ecu_can_log(dir / "c.log", log, error));
+  error = read_error(dir / "c.log");
+  CHECK_FALSE(error.empty());
   CHECK_THAT(error, StartsWith((dir / "c.log").string() + ":2:"));
 }
 
@@ -454,20 +488,22 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
 
   // Stamps on the wall clock: refused at the first line, with the drive's span.
   fixture::write_text(path, "(1733130000.100000) vcan0 2B0#0011223344556677\n");
-  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  error = read_error(path, &drive);
+  CHECK_FALSE(error.empty());
   CHECK_THAT(error,
              StartsWith(path + ":1: stamp 1733130000.100000 s lies outside the drive (0.000 to 79.900 s"));
   // ... but read without a drive to hold them against.
-  CHECK(read_ecu_can_log(path, log, error));
+  log = read_log(path);
   // Within the allowance either side of the drive.
   fixture::write_text(path,
                       "(0000000000.000000) vcan0 2B0#0011223344556677\n"
                       "(0000000139.900000) vcan0 2B0#0011223344556677\n");
-  CHECK(read_ecu_can_log(path, log, error, &drive));
+  log = read_log(path, &drive);
   fixture::write_text(path,
                       "(0000000000.000000) vcan0 2B0#0011223344556677\n"
                       "(0000000140.000000) vcan0 2B0#0011223344556677\n");
-  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  error = read_error(path, &drive);
+  CHECK_FALSE(error.empty());
   CHECK_THAT(error, StartsWith(path + ":2: stamp 140.000000 s lies outside the drive"));
 
   // Going back in time.
@@ -475,7 +511,8 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
                       "(0000000002.000000) vcan0 2B0#0011223344556677\n"
                       "(0000000002.000000) vcan0 2B0#0011223344556677\n"
                       "(0000000001.999999) vcan0 2B0#0011223344556677\n");
-  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  error = read_error(path, &drive);
+  CHECK_FALSE(error.empty());
   CHECK_THAT(error, StartsWith(path + ":3: stamp 1.999999 s is before the line above's 2.000000 s"));
 
   // A last line cut short (no newline, too few bytes on an ECU id) is an
@@ -483,14 +520,15 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
   fixture::write_text(path,
                       "(0000000001.000000) vcan0 120#0011223344556677\n"
                       "(0000000001.000000) vcan0 2A0#0011223344");
-  CHECK_FALSE(read_ecu_can_log(path, log, error, &drive));
+  error = read_error(path, &drive);
+  CHECK_FALSE(error.empty());
   CHECK(error == path +
                      ":2: the last line is cut short: no newline at its end, and its frame has 5 bytes "
                      "where the ECU sends 8 (was the log cut?)");
   fixture::write_text(path,
                       "(0000000001.000000) vcan0 120#0011223344556677\n"
                       "(0000000001.000000) vcan0 2A0#0011223344\n");
-  REQUIRE(read_ecu_can_log(path, log, error, &drive));
+  log = read_log(path, &drive);
   CHECK(log.loop_frames.wrong_length == 1);
   CHECK(can_log_warnings(path, log) ==
         std::vector<std::string>{path +
@@ -498,14 +536,14 @@ TEST_CASE("a CAN log off the drive's clock, cut short or not the ECU's is told")
                                  "5 bytes, the DBC's 8): rejected, counted under 'length'"});
   // Another id's frame without a newline is no ECU frame to judge.
   fixture::write_text(path, "(0000000001.000000) vcan0 120#0011");
-  REQUIRE(read_ecu_can_log(path, log, error, &drive));
+  log = read_log(path, &drive);
   CHECK(can_log_warnings(path, log) ==
         std::vector<std::string>{path +
                                  ": no LoopDetection or Status frame: is this the ECU's log? (its one frame "
                                  "is of another id)"});
 
   // The fixture's own log: nothing to say.
-  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error, &drive));
+  log = read_log(dir / "ecu-can.log", &drive);
   CHECK(can_log_warnings(dir / "ecu-can.log", log).empty());
 }
 
@@ -515,15 +553,19 @@ TEST_CASE("the picture is written as SVG and PNG") {
   std::vector<double> times;
   std::vector<WorldMarking> world;
   std::string error;
-  REQUIRE(replay::load_truth(dir / "frames.csv", route, error, &times));
-  REQUIRE(load_world_markings(dir / "markings.csv", world, error));
+  {
+    auto truth = loaded(replay::load_truth(dir / "frames.csv"));
+    route = std::move(truth.poses);
+    times = std::move(truth.times);
+  }
+  world = loaded(load_world_markings(dir / "markings.csv"));
   EcuCanLog log;
-  REQUIRE(read_ecu_can_log(dir / "ecu-can.log", log, error));
+  log = read_log(dir / "ecu-can.log");
   const replay::TruthJudge judge(route, 5.0, 100.0);
   const LoopScore score = score_loops(judge, times, log.loops);
   FigureContent content{&route, &world, &score.outcomes, "title & <figures>", "subtitle"};
-  REQUIRE(write_svg(dir / "loops.svg", content, error));
-  REQUIRE(write_png(dir / "loops.png", content, error));
+  REQUIRE(write_svg(dir / "loops.svg", content));
+  REQUIRE(write_png(dir / "loops.png", content));
   CHECK(fs::file_size(dir / "loops.png") > 1000);
   std::string svg;
   {
@@ -540,6 +582,7 @@ TEST_CASE("the picture is written as SVG and PNG") {
   CHECK(svg.find(">crosswalk<") != std::string::npos);         // legend
   CHECK(svg.ends_with("</svg>\n"));
 
-  CHECK_FALSE(write_png((dir / "no-such-dir" / "x.png").string(), content, error));
-  CHECK_THAT(error, StartsWith((dir / "no-such-dir" / "x.png").string()));
+  const Status unwritten = write_png((dir / "no-such-dir" / "x.png").string(), content);
+  REQUIRE_FALSE(unwritten);
+  CHECK_THAT(unwritten.message(), StartsWith((dir / "no-such-dir" / "x.png").string()));
 }

@@ -15,8 +15,10 @@ using namespace markloop;
 
 namespace {
 
-void expect_named(bool loaded, const std::string& error, const std::string& path) {
-  if (!loaded && error.rfind(path, 0) != 0) std::abort();
+// A load that failed must name the file first.
+template <class T>
+void expect_named(const Result<T>& loaded, const std::string& path) {
+  if (!loaded && loaded.message().rfind(path, 0) != 0) std::abort();
 }
 
 }  // namespace
@@ -24,18 +26,9 @@ void expect_named(bool loaded, const std::string& error, const std::string& path
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const fuzz::InputFile file(data, size, ".txt");
   const std::string& path = file.path();
-  std::string error;
-  std::vector<replay::MarkingRecord> markings;
-  expect_named(replay::load_markings(path, markings, error), error, path);
-  std::vector<Pose2> poses;
-  error.clear();
-  expect_named(replay::load_kitti_poses(path, poses, error), error, path);
-  std::vector<double> times;
-  poses.clear();
-  error.clear();
-  expect_named(replay::load_truth(path, poses, error, &times), error, path);
-  eval::EcuCanLog log;
-  error.clear();
-  expect_named(eval::read_ecu_can_log(path, log, error), error, path);
+  expect_named(replay::load_markings(path), path);
+  expect_named(replay::load_kitti_poses(path), path);
+  expect_named(replay::load_truth(path), path);
+  expect_named(eval::read_ecu_can_log(path), path);
   return 0;
 }

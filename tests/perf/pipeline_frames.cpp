@@ -96,22 +96,20 @@ int run_perception(unsigned frames) {
 
 int main(int argc, char** argv) {
   cli::program_name() = "markloop-pipeline-frames";
+  static constexpr cli::OptionSpec kOptions[] = {
+      {"--stage", "STAGE", "engine or perception"},
+      {"--frames", "N", "number of frames to process (0 allowed)"},
+  };
+  const cli::ParsedArgs args = cli::parse_args_or_fail(argc, argv, kOptions);
   std::string stage;
   long frames = -1;
-  for (int a = 1; a < argc; ++a) {
-    const std::string arg = argv[a];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    if (a + 1 >= argc) cli::fail(arg + ": missing value (see --help)");
-    if (arg == "--stage") {
-      stage = argv[++a];
-    } else if (arg == "--frames") {
-      frames = cli::parse_whole("--frames", argv[++a]);
-    } else {
-      cli::fail("unknown option " + arg + " (see --help)");
-    }
+  for (const cli::ParsedArgs::Given& given : args.given()) {
+    if (given.name == "--stage") stage = given.value;
+    if (given.name == "--frames") frames = cli::parse_whole("--frames", std::string(given.value).c_str());
+  }
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    return cli::kExitOk;
   }
   if (stage.empty()) cli::fail("--stage is required (see --help)");
   if (frames < 0) cli::fail("--frames is required (see --help)");

@@ -153,108 +153,165 @@ void check_views(const std::string& view_dir, const std::vector<std::string>& im
   }
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  using namespace markloop::perception;
-  markloop::cli::program_name() = "markloop-detect";
+struct Options {
   std::string camera_path;
-  double min_score = -1.0;
+  double min_score = -1.0;  // below 0: the calibration's
   bool whole_only = false;
   std::string view_dir;
   std::vector<std::string> images;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    if (arg == "--whole-only") {
-      whole_only = true;
-      continue;
-    }
-    if (arg.size() > 1 && arg[0] == '-') {
-      const char* value = markloop::cli::option_value(argc, argv, i, {"--camera", "--min-score", "--view"});
-      if (arg == "--camera") {
-        camera_path = value;
-      } else if (arg == "--view") {
-        view_dir = value;
-      } else {
-        min_score = markloop::cli::parse_number(arg, value);
-        if (min_score < 0.0 || min_score > 1.0)
-          markloop::cli::fail("--min-score: must be 0..1, got " + std::string(value));
-      }
-      continue;
-    }
-    images.push_back(arg);
-  }
-  if (camera_path.empty()) markloop::cli::fail("--camera FILE is required (see --help)");
-  if (images.empty()) markloop::cli::fail("no image given: IMAGE... is required (see --help)");
+};
 
-  // Missing files are reported here, plainly, before OpenCV would log them.
+// The option table; kUsage above is the help text a user reads.
+constexpr markloop::cli::OptionSpec kOptions[] = {
+    {"--camera", "FILE", "calibration (required)"},
+    {"--min-score", "S", "report detections scoring at least S (0..1)"},
+    {"--whole-only", "", "report no partial markings"},
+    {"--view", "DIR", "also write what the detector saw, per image DIR/NAME.png"},
+};
+
+// One option as given, checked where it stands on the command line.
+void apply_option(std::string_view name, std::string_view value, Options& o) {
+  if (name == "--whole-only") {
+    o.whole_only = true;
+  } else if (name == "--camera") {
+    o.camera_path = value;
+  } else if (name == "--view") {
+    o.view_dir = value;
+  } else if (name == "--min-score") {
+    const std::string text(value);
+    o.min_score = markloop::cli::parse_number(name, text.c_str());
+    if (o.min_score < 0.0 || o.min_score > 1.0) markloop::cli::fail("--min-score: must be 0..1, got " + text);
+  }
+}
+
+Options parse(int argc, char** argv) {
+  const auto args =
+      markloop::cli::parse_args_or_fail(argc, argv, kOptions, 0, static_cast<std::size_t>(argc));
+  Options o;
+  // The options before --help are checked as given, as without it.
+  for (const auto& given : args.given()) apply_option(given.name, given.value, o);
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    std::exit(markloop::cli::kExitOk);
+  }
+  o.images.assign(args.positional().begin(), args.positional().end());
+  if (o.camera_path.empty()) markloop::cli::fail("--camera FILE is required (see --help)");
+  if (o.images.empty()) markloop::cli::fail("no image given: IMAGE... is required (see --help)");
+  return o;
+}
+
+// The calibration must be a regular file: it is opened twice (camera, then
+// detector keys), and a pipe would be empty the second time. Missing files
+// are reported here, plainly, before OpenCV would log them.
+void check_calibration_file(const std::string& camera_path) {
   std::error_code ec;
   const std::filesystem::file_status camera_status = std::filesystem::status(camera_path, ec);
   if (std::filesystem::is_directory(camera_status))
     markloop::cli::fail(camera_path + ": is a directory, not a calibration file");
   if (!std::filesystem::exists(camera_status))
     markloop::cli::fail(camera_path + ": no such calibration file");
-  // The calibration is opened twice (camera, then detector keys): a pipe
-  // would be empty the second time.
   if (!std::filesystem::is_regular_file(camera_status))
     markloop::cli::fail(camera_path + ": not a regular file, which a calibration must be");
+}
+
+// The camera and the detector settings the options and the calibration describe.
+struct Setup {
+  markloop::perception::CameraModel camera;
+  markloop::perception::DetectorConfig config;
+};
+
+Setup load_setup(const Options& o) {
+  using namespace markloop::perception;
+  check_calibration_file(o.camera_path);
   std::string error;
-  const auto camera = load_camera_model(camera_path, error);
+  const auto camera = load_camera_model(o.camera_path, error);
   if (!camera) markloop::cli::fail(error);
   DetectorConfig config;
-  if (!load_detector_config(camera_path, config, error)) markloop::cli::fail(error);
-  if (min_score >= 0.0) config.min_score = static_cast<float>(min_score);
-  if (whole_only) config.report_partial_in_stills = false;
-  MarkingDetector detector(*camera, config);
-  if (!view_dir.empty()) {
-    std::error_code made;
-    std::filesystem::create_directories(view_dir, made);
-    if (!std::filesystem::is_directory(view_dir, ec))
-      markloop::tools::fail_run("--view " + view_dir + ": cannot create the directory" +
-                                (made ? " (" + made.message() + ")" : std::string()));
-    check_views(view_dir, images);
-  }
+  if (!load_detector_config(o.camera_path, config, error)) markloop::cli::fail(error);
+  if (o.min_score >= 0.0) config.min_score = static_cast<float>(o.min_score);
+  if (o.whole_only) config.report_partial_in_stills = false;
+  return {*camera, config};
+}
 
-  int bad_images = 0, unwritten_views = 0;
-  for (const std::string& path : images) {
-    const std::filesystem::file_status status = std::filesystem::status(path, ec);
-    if (const std::string reason = not_a_file_reason(status, ec); !reason.empty()) {
-      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), reason.c_str());
-      ++bad_images;
-      continue;
-    }
-    const cv::Mat grey = markloop::io::read_grey_still(path, {camera->width(), camera->height()}, error);
-    if (grey.empty()) {
-      // A size that is not the camera's may be the calibration's fault: name it.
-      if (error.starts_with("image is ")) error += " (" + camera_path + ")";
-      std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), error.c_str());
-      ++bad_images;
-      continue;
-    }
-    const std::string name = json_string(std::filesystem::path(path).filename().string());
-    // Each image on its own: its own lane lines place the horizon (when the
-    // calibration asks for it, detector_horizon_from_lanes).
-    const std::span<const Detection> detections = detector.detect_still(grey);
-    if (!view_dir.empty()) {
-      if (!write_view(detector, detections, view_path(view_dir, path), error)) {
-        std::fprintf(stderr, "markloop-detect: %s\n", error.c_str());
-        ++unwritten_views;
-      }
-    }
-    for (const Detection& d : detections) {
-      std::printf("{\"image\": %s, \"label\": \"%s\", \"score\": %.3f, \"quad\": [", name.c_str(),
-                  std::string(marking_class_name(d.label)).c_str(), static_cast<double>(d.score));
-      for (int k = 0; k < 4; ++k)
-        std::printf("%s[%.1f, %.1f]", k ? ", " : "", static_cast<double>(d.quad[k][0]),
-                    static_cast<double>(d.quad[k][1]));
-      std::printf("], \"ground\": [%.2f, %.2f]%s}\n", static_cast<double>(d.ground_x),
-                  static_cast<double>(d.ground_y), d.partial ? ", \"partial\": true" : "");
-    }
+// The --view directory, made when missing; fails the run when it cannot be.
+void prepare_view_dir(const Options& o) {
+  std::error_code made, ec;
+  std::filesystem::create_directories(o.view_dir, made);
+  if (!std::filesystem::is_directory(o.view_dir, ec))
+    markloop::tools::fail_run("--view " + o.view_dir + ": cannot create the directory" +
+                              (made ? " (" + made.message() + ")" : std::string()));
+  check_views(o.view_dir, o.images);
+}
+
+void print_detection(const std::string& name, const markloop::perception::Detection& d) {
+  std::printf("{\"image\": %s, \"label\": \"%s\", \"score\": %.3f, \"quad\": [", name.c_str(),
+              std::string(markloop::perception::marking_class_name(d.label)).c_str(),
+              static_cast<double>(d.score));
+  for (int k = 0; k < 4; ++k)
+    std::printf("%s[%.1f, %.1f]", k ? ", " : "", static_cast<double>(d.quad[k][0]),
+                static_cast<double>(d.quad[k][1]));
+  std::printf("], \"ground\": [%.2f, %.2f]%s}\n", static_cast<double>(d.ground_x),
+              static_cast<double>(d.ground_y), d.partial ? ", \"partial\": true" : "");
+}
+
+// What became of the images: the exit status counts them.
+struct Tally {
+  int bad_images = 0;
+  int unwritten_views = 0;
+};
+
+// The image as the camera's grey frame, or empty after saying on stderr
+// why it cannot be used.
+cv::Mat read_image(const Options& o, const std::string& path, cv::Size size) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (const std::string reason = not_a_file_reason(status, ec); !reason.empty()) {
+    std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), reason.c_str());
+    return {};
   }
+  std::string error;
+  const cv::Mat grey = markloop::io::read_grey_still(path, size, error);
+  if (grey.empty()) {
+    // A size that is not the camera's may be the calibration's fault: name it.
+    if (error.starts_with("image is ")) error += " (" + o.camera_path + ")";
+    std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), error.c_str());
+  }
+  return grey;
+}
+
+void detect_image(const Options& o, const std::string& path, cv::Size size,
+                  markloop::perception::MarkingDetector& detector, Tally& tally) {
+  using namespace markloop::perception;
+  const cv::Mat grey = read_image(o, path, size);
+  if (grey.empty()) {
+    ++tally.bad_images;
+    return;
+  }
+  const std::string name = json_string(std::filesystem::path(path).filename().string());
+  // Each image on its own: its own lane lines place the horizon (when the
+  // calibration asks for it, detector_horizon_from_lanes).
+  const std::span<const Detection> detections = detector.detect_still(grey);
+  std::string error;
+  if (!o.view_dir.empty() && !write_view(detector, detections, view_path(o.view_dir, path), error)) {
+    std::fprintf(stderr, "markloop-detect: %s\n", error.c_str());
+    ++tally.unwritten_views;
+  }
+  for (const Detection& d : detections) print_detection(name, d);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  markloop::cli::program_name() = "markloop-detect";
+  const Options o = parse(argc, argv);
+  const Setup setup = load_setup(o);
+  markloop::perception::MarkingDetector detector(setup.camera, setup.config);
+  if (!o.view_dir.empty()) prepare_view_dir(o);
+  const cv::Size size(setup.camera.width(), setup.camera.height());
+  Tally tally;
+  for (const std::string& path : o.images) detect_image(o, path, size, detector, tally);
+  std::string error;
   if (!markloop::tools::flush_stdout(error)) markloop::tools::fail_run(error);
-  return bad_images > 0 ? 2 : unwritten_views > 0 ? 1 : 0;
+  if (tally.bad_images > 0) return markloop::cli::kExitBadInput;
+  return tally.unwritten_views > 0 ? markloop::cli::kExitOutputFailed : markloop::cli::kExitOk;
 }

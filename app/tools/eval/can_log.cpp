@@ -73,113 +73,147 @@ std::string where(const std::string& path, std::size_t line) {
   return path + ":" + std::to_string(line) + ": ";
 }
 
+// "FILE:LINE: what" when a frame's stamp goes back in time or lies outside
+// the drive. The stamps are the drive's clock, in send order: a log on
+// another clock would give every latency as nonsense.
+class StampCheck {
+ public:
+  StampCheck(const std::string& path, const DriveTimes* drive) : path_(path), drive_(drive) {}
+
+  Status check(std::size_t line, std::int64_t stamp_ns) {
+    const bool first = !seen_;
+    seen_ = true;
+    if (!first && stamp_ns < previous_ns_)
+      return error(where(path_, line) + "stamp " + stamp_text(stamp_ns) + " s is before the line above's " +
+                   stamp_text(previous_ns_) +
+                   " s: the ECU logs its frames in send order, on the drive's clock");
+    previous_ns_ = stamp_ns;
+    if (drive_ == nullptr) return {};
+    const double stamp_s = static_cast<double>(stamp_ns) * 1e-9;
+    if (stamp_s >= drive_->first_s - kStampsBeforeDrive_s && stamp_s <= drive_->last_s + kStampsAfterDrive_s)
+      return {};
+    char span[160];
+    std::snprintf(span, sizeof span, "(%.3f to %.3f s by frames.csv; %g s before and %g s after allowed)",
+                  drive_->first_s, drive_->last_s, kStampsBeforeDrive_s, kStampsAfterDrive_s);
+    return error(
+        where(path_, line) + "stamp " + stamp_text(stamp_ns) + " s lies outside the drive " + span +
+        ": the ECU stamps its log on the drive's clock; is this log on the wall clock, or of another "
+        "drive?");
+  }
+
+ private:
+  const std::string& path_;
+  const DriveTimes* drive_;
+  bool seen_ = false;
+  std::int64_t previous_ns_ = 0;
+};
+
+// The ECU's frames decoded and counted as they come. The log is the ECU's
+// own output in send order, so the alive counters must advance by exactly
+// one per frame of an id.
+class FrameDecoder {
+ public:
+  explicit FrameDecoder(EcuCanLog& out) : out_(out) {}
+
+  void take(const can::CanFrame& frame, std::size_t line) {
+    last_frame_too_short_ = false;
+    if (frame.extended || (frame.id != dbc::LoopDetection::kId && frame.id != dbc::Status::kId))
+      ++out_.other_frames;
+    else if (frame.id == dbc::LoopDetection::kId)
+      take_loop_page(frame, line);
+    else
+      take_status_page(frame, line);
+  }
+
+  // The last frame taken: one of the ECU's ids, short of its length.
+  bool last_frame_too_short() const { return last_frame_too_short_; }
+  std::size_t last_frame_bytes() const { return last_frame_bytes_; }
+  std::size_t last_frame_want() const { return last_frame_want_; }
+
+ private:
+  void note_length(dbc::DecodeError result, const can::CanFrame& frame, std::size_t line, std::size_t want) {
+    if (result != dbc::DecodeError::WrongLength) return;
+    note_wrong_length(out_, line, frame.dlc, want);
+    last_frame_too_short_ = frame.dlc < want;
+    last_frame_bytes_ = frame.dlc;
+    last_frame_want_ = want;
+  }
+
+  void take_loop_page(const can::CanFrame& frame, std::size_t line) {
+    const dbc::DecodeError result = dbc::decode(frame.payload(), loop_e2e_, page_);
+    out_.loop_frames.count(result);
+    note_length(result, frame, line, dbc::LoopDetection::kLength);
+    if (result != dbc::DecodeError::None) {
+      assembler_.drop();
+      return;
+    }
+    if (page_.loop_page == dbc::LoopDetection::kPages[0]) ++out_.detections_started;
+    if (assembler_.add(page_)) out_.loops.push_back({assembler_.detection(), frame.timestamp_ns, line});
+  }
+
+  void take_status_page(const can::CanFrame& frame, std::size_t line) {
+    const dbc::DecodeError result = dbc::decode(frame.payload(), status_e2e_, status_page_);
+    out_.status_frames.count(result);
+    note_length(result, frame, line, dbc::Status::kLength);
+    if (result != dbc::DecodeError::None) return;
+    StatusSummary& s = out_.status;
+    const dbc::Status& p = status_page_;
+    s.last = p;
+    s.page_seen[static_cast<std::size_t>(p.status_page)] = true;
+    if (p.status_page == dbc::StatusPage::Timing && p.loop_time_max_ms > s.loop_time_max_ms)
+      s.loop_time_max_ms = p.loop_time_max_ms;
+    ++s.frames_in_state[static_cast<std::size_t>(p.system_state)];
+    s.camera_lost += p.fault_camera_lost ? 1 : 0;
+    // Page 3's own flag: a frame of another page does not carry it.
+    if (p.status_page == dbc::StatusPage::Perception) s.camera_blind += p.fault_camera_blind ? 1 : 0;
+    s.odometry_timeout += p.fault_odometry_timeout ? 1 : 0;
+    s.bus_error += p.fault_bus_error ? 1 : 0;
+    s.overrun += p.fault_overrun ? 1 : 0;
+  }
+
+  EcuCanLog& out_;
+  dbc::E2eReceiverState loop_e2e_, status_e2e_;
+  dbc::LoopDetectionAssembler assembler_;
+  dbc::LoopDetection page_{};
+  dbc::Status status_page_{};
+  bool last_frame_too_short_ = false;
+  std::size_t last_frame_bytes_ = 0, last_frame_want_ = 0;
+};
+
+// candump ends every line with a newline: a last line without one, whose
+// frame is short of its length, is a log cut mid-line (a full disk, a copy
+// stopped half-way), not a frame the ECU sent.
+Status check_last_line(const std::string& path, const std::string& text, std::size_t line,
+                       const FrameDecoder& decoder) {
+  if (!decoder.last_frame_too_short() || text.empty() || text.back() == '\n') return {};
+  return error(where(path, line) + "the last line is cut short: no newline at its end, and its frame has " +
+               std::to_string(decoder.last_frame_bytes()) + " bytes where the ECU sends " +
+               std::to_string(decoder.last_frame_want()) + " (was the log cut?)");
+}
+
 }  // namespace
 
-bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& error, const DriveTimes* drive) {
-  out = EcuCanLog{};
-  std::string text;
-  if (!tools::read_input(path, kMaxInputBytes, "a CAN log", text, error)) return false;
+Result<EcuCanLog> read_ecu_can_log(const std::string& path, const DriveTimes* drive) {
+  EcuCanLog out;
+  std::string text, problem;
+  if (!tools::read_input(path, kMaxInputBytes, "a CAN log", text, problem)) return error(problem);
   Progress progress(path, count_lines(text));
   tools::Lines lines(text);
-  // The log is the ECU's own output in send order, so the alive counters
-  // must advance by exactly one per frame of an id.
-  dbc::E2eReceiverState loop_e2e, status_e2e;
-  dbc::LoopDetectionAssembler assembler;
-  dbc::LoopDetection page{};
-  dbc::Status status_page{};
+  StampCheck stamps(path, drive);
+  FrameDecoder decoder(out);
   can::CandumpRecord record;
   std::string_view line;
-  std::int64_t previous_ns = 0;
-  bool last_frame_too_short = false;  // the last line's frame: an ECU id, short of its length
-  std::size_t last_frame_bytes = 0, last_frame_want = 0;
   while (lines.next(line)) {
-    if (!parse_line(path, lines.number(), line, record, error)) return false;
+    if (!parse_line(path, lines.number(), line, record, problem)) return error(problem);
     ++out.frames;
     if ((out.frames & 0xFFF) == 0) progress.update(lines.number());
-    const can::CanFrame& frame = record.frame;
-    // The stamps are the drive's clock, in send order: a log on another
-    // clock would give every latency as nonsense.
-    if (out.frames > 1 && frame.timestamp_ns < previous_ns) {
-      error = where(path, lines.number()) + "stamp " + stamp_text(frame.timestamp_ns) +
-              " s is before the line above's " + stamp_text(previous_ns) +
-              " s: the ECU logs its frames in send order, on the drive's clock";
-      return false;
-    }
-    previous_ns = frame.timestamp_ns;
-    if (drive != nullptr) {
-      const double stamp_s = static_cast<double>(frame.timestamp_ns) * 1e-9;
-      if (!(stamp_s >= drive->first_s - kStampsBeforeDrive_s &&
-            stamp_s <= drive->last_s + kStampsAfterDrive_s)) {
-        char span[160];
-        std::snprintf(span, sizeof span, "(%.3f to %.3f s by frames.csv; %g s before and %g s after allowed)",
-                      drive->first_s, drive->last_s, kStampsBeforeDrive_s, kStampsAfterDrive_s);
-        error = where(path, lines.number()) + "stamp " + stamp_text(frame.timestamp_ns) +
-                " s lies outside the drive " + span +
-                ": the ECU stamps its log on the drive's clock; is this log on the wall clock, or of another "
-                "drive?";
-        return false;
-      }
-    }
-    last_frame_too_short = false;
-    if (frame.extended || (frame.id != dbc::LoopDetection::kId && frame.id != dbc::Status::kId)) {
-      ++out.other_frames;
-      continue;
-    }
-    if (frame.id == dbc::LoopDetection::kId) {
-      const dbc::DecodeError result_code = dbc::decode(frame.payload(), loop_e2e, page);
-      out.loop_frames.count(result_code);
-      if (result_code == dbc::DecodeError::WrongLength) {
-        note_wrong_length(out, lines.number(), frame.dlc, dbc::LoopDetection::kLength);
-        last_frame_too_short = frame.dlc < dbc::LoopDetection::kLength;
-        last_frame_bytes = frame.dlc;
-        last_frame_want = dbc::LoopDetection::kLength;
-      }
-      if (result_code != dbc::DecodeError::None) {
-        assembler.drop();
-        continue;
-      }
-      if (page.loop_page == dbc::LoopDetection::kPages[0]) ++out.detections_started;
-      if (assembler.add(page))
-        out.loops.push_back({assembler.detection(), frame.timestamp_ns, lines.number()});
-      continue;
-    }
-    const dbc::DecodeError result_code = dbc::decode(frame.payload(), status_e2e, status_page);
-    out.status_frames.count(result_code);
-    if (result_code == dbc::DecodeError::WrongLength) {
-      note_wrong_length(out, lines.number(), frame.dlc, dbc::Status::kLength);
-      last_frame_too_short = frame.dlc < dbc::Status::kLength;
-      last_frame_bytes = frame.dlc;
-      last_frame_want = dbc::Status::kLength;
-    }
-    if (result_code != dbc::DecodeError::None) continue;
-    StatusSummary& s = out.status;
-    s.last = status_page;
-    s.page_seen[static_cast<std::size_t>(status_page.status_page)] = true;
-    if (status_page.status_page == dbc::StatusPage::Timing &&
-        status_page.loop_time_max_ms > s.loop_time_max_ms)
-      s.loop_time_max_ms = status_page.loop_time_max_ms;
-    ++s.frames_in_state[static_cast<std::size_t>(status_page.system_state)];
-    s.camera_lost += status_page.fault_camera_lost ? 1 : 0;
-    // Page 3's own flag: a frame of another page does not carry it.
-    if (status_page.status_page == dbc::StatusPage::Perception)
-      s.camera_blind += status_page.fault_camera_blind ? 1 : 0;
-    s.odometry_timeout += status_page.fault_odometry_timeout ? 1 : 0;
-    s.bus_error += status_page.fault_bus_error ? 1 : 0;
-    s.overrun += status_page.fault_overrun ? 1 : 0;
+    if (Status stamp = stamps.check(lines.number(), record.frame.timestamp_ns); !stamp) return stamp.error();
+    decoder.take(record.frame, lines.number());
   }
-  // candump ends every line with a newline: a last line without one, whose
-  // frame is short of its length, is a log cut mid-line (a full disk, a
-  // copy stopped half-way), not a frame the ECU sent.
-  if (last_frame_too_short && !text.empty() && text.back() != '\n') {
-    error = where(path, lines.number()) +
-            "the last line is cut short: no newline at its end, and its frame has " +
-            std::to_string(last_frame_bytes) + " bytes where the ECU sends " +
-            std::to_string(last_frame_want) + " (was the log cut?)";
-    return false;
-  }
+  if (Status last = check_last_line(path, text, lines.number(), decoder); !last) return last.error();
   progress.finish();
   out.detections_incomplete = out.detections_started - out.loops.size();
-  return true;
+  return out;
 }
 
 std::vector<std::string> can_log_warnings(const std::string& path, const EcuCanLog& log) {

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "app/common/result.hpp"
 #include "dbc/markloop_messages.hpp"
 
 namespace markloop::eval {
@@ -68,15 +69,14 @@ struct DriveTimes {
 inline constexpr double kStampsBeforeDrive_s = 10.0;
 inline constexpr double kStampsAfterDrive_s = 60.0;
 
-// Reads the whole log (up to kMaxInputBytes). Returns false with
+// Reads the whole log (up to kMaxInputBytes). An error reads
 // "FILE:LINE:COLUMN: what in 'line'" on a line that is not a candump -l
 // frame, "FILE:LINE: what" on a stamp that goes back in time or (with
 // `drive`) lies outside the drive, or on a last line cut short (no newline,
 // and a LoopDetection or Status frame too short), or "FILE: what" when the
 // file cannot be read. Frames that parse but fail the E2E checks are not
 // errors: they are counted.
-bool read_ecu_can_log(const std::string& path, EcuCanLog& out, std::string& error,
-                      const DriveTimes* drive = nullptr);
+Result<EcuCanLog> read_ecu_can_log(const std::string& path, const DriveTimes* drive = nullptr);
 
 // What a log that was read deserves a word about (one message each, naming
 // the file): frames of the wrong length on the ECU's ids, no frame of the

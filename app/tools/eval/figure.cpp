@@ -147,13 +147,7 @@ cv::Scalar bgr(Rgb c) {
   return {double(c.b), double(c.g), double(c.r)};
 }
 
-}  // namespace
-
-bool write_svg(const std::string& path, const FigureContent& c, std::string& error) {
-  const Layout layout(c);
-  tools::OutputFile file;
-  if (!file.open(path, error)) return false;
-  std::FILE* f = file.get();
+void svg_header(std::FILE* f, const Layout& layout, const FigureContent& c) {
   std::fprintf(f,
                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
                "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%d\" height=\"%d\" "
@@ -164,12 +158,13 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
                Layout::kMargin, xml_escaped(c.title).c_str());
   std::fprintf(f, "<text x=\"%d\" y=\"50\" font-size=\"13\">%s</text>\n", Layout::kMargin,
                xml_escaped(c.subtitle).c_str());
+}
 
-  // Route: one polyline, decimated to about a pixel per point.
+// Route: one polyline, decimated to about a pixel per point.
+void svg_route(std::FILE* f, const Layout& layout, const std::vector<Pose2>& route) {
   std::fprintf(f, "<polyline fill=\"none\" stroke=\"%s\" stroke-width=\"1.2\" points=\"",
                svg_colour(kRoute).c_str());
   double last_x = -1e9, last_y = -1e9;
-  const auto& route = *c.route;
   for (std::size_t i = 0; i < route.size(); ++i) {
     const double x = layout.px(route[i].x), y = layout.py(route[i].y);
     if (i + 1 < route.size() && std::hypot(x - last_x, y - last_y) < 1.0) continue;
@@ -177,11 +172,13 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
     last_x = x, last_y = y;
   }
   std::fprintf(f, "\"/>\n");
+}
 
+void svg_markings_and_loops(std::FILE* f, const Layout& layout, const FigureContent& c) {
   for (const WorldMarking& m : *c.markings)
     std::fprintf(f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"3\" fill=\"%s\"/>\n", layout.px(m.x), layout.py(m.y),
                  svg_colour(kClassColours[m.label]).c_str());
-
+  const auto& route = *c.route;
   for (const LoopOutcome& loop : *c.loops) {
     if (loop.verdict == Verdict::Unjudged) continue;
     const Pose2& q = route[loop.pair.query];
@@ -197,8 +194,9 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
           f, "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"4\" fill=\"none\" stroke=\"%s\" stroke-width=\"1.5\"/>\n",
           layout.px(p->x), layout.py(p->y), colour.c_str());
   }
+}
 
-  // Scale bar.
+void svg_scale_bar(std::FILE* f, const Layout& layout) {
   const double bar_m = layout.scale_bar_m();
   const double bar_px = bar_m * layout.pixels_per_metre();
   const int bar_y = layout.scale_bar_y();
@@ -207,8 +205,9 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
                "<text x=\"%.1f\" y=\"%d\" font-size=\"12\">%s</text>\n",
                Layout::kMargin, bar_y - 6, bar_px, Layout::kMargin + bar_px + 8, bar_y + 4,
                length_text(bar_m).c_str());
+}
 
-  // Legend.
+void svg_legend(std::FILE* f, const Layout& layout, const std::vector<WorldMarking>& markings) {
   int y = Layout::kTitle + Layout::kMargin + 10;
   const int x = layout.legend_x();
   const auto legend_line = [&](Rgb colour, const char* text) {
@@ -222,7 +221,7 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
   legend_line(kCorrect, "correct loop");
   legend_line(kWrong, "wrong loop");
   y += 6;
-  for (const Label label : classes_present(*c.markings)) {
+  for (const Label label : classes_present(markings)) {
     std::fprintf(f,
                  "<circle cx=\"%d\" cy=\"%d\" r=\"4\" fill=\"%s\"/>"
                  "<text x=\"%d\" y=\"%d\" font-size=\"12\">%s</text>\n",
@@ -230,50 +229,45 @@ bool write_svg(const std::string& path, const FigureContent& c, std::string& err
                  xml_escaped(perception::marking_class_name(label)).c_str());
     y += 17;
   }
-  std::fprintf(f, "</svg>\n");
-  return file.close(error);
 }
 
-bool write_png(const std::string& path, const FigureContent& c, std::string& error) {
-  const Layout layout(c);
-  cv::Mat image(layout.height(), layout.width(), CV_8UC3, cv::Scalar(255, 255, 255));
-  const auto point = [&](double x, double y) {
-    return cv::Point(static_cast<int>(std::lround(layout.px(x))),
-                     static_cast<int>(std::lround(layout.py(y))));
-  };
-  cv::putText(image, c.title, {Layout::kMargin, 26}, cv::FONT_HERSHEY_SIMPLEX, 0.65, {0, 0, 0}, 2,
-              cv::LINE_AA);
-  cv::putText(image, c.subtitle, {Layout::kMargin, 50}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1,
-              cv::LINE_AA);
+// A point of the world in the picture's pixels.
+cv::Point pixel(const Layout& layout, double x, double y) {
+  return cv::Point(static_cast<int>(std::lround(layout.px(x))), static_cast<int>(std::lround(layout.py(y))));
+}
 
+void png_route_markings_and_loops(cv::Mat& image, const Layout& layout, const FigureContent& c) {
   std::vector<cv::Point> polyline;
   for (const Pose2& p : *c.route) {
-    const cv::Point q = point(p.x, p.y);
+    const cv::Point q = pixel(layout, p.x, p.y);
     if (polyline.empty() || polyline.back() != q) polyline.push_back(q);
   }
   if (polyline.size() > 1) cv::polylines(image, polyline, false, bgr(kRoute), 1, cv::LINE_AA);
   for (const WorldMarking& m : *c.markings)
-    cv::circle(image, point(m.x, m.y), 3, bgr(kClassColours[m.label]), cv::FILLED, cv::LINE_AA);
+    cv::circle(image, pixel(layout, m.x, m.y), 3, bgr(kClassColours[m.label]), cv::FILLED, cv::LINE_AA);
   for (const LoopOutcome& loop : *c.loops) {
     if (loop.verdict == Verdict::Unjudged) continue;
     const cv::Scalar colour = bgr(loop.verdict == Verdict::Correct ? kCorrect : kWrong);
     const Pose2& q = (*c.route)[loop.pair.query];
     const Pose2& m = (*c.route)[loop.pair.match];
-    cv::line(image, point(q.x, q.y), point(m.x, m.y), colour, 2, cv::LINE_AA);
-    cv::circle(image, point(q.x, q.y), 4, colour, 1, cv::LINE_AA);
-    cv::circle(image, point(m.x, m.y), 4, colour, 1, cv::LINE_AA);
+    cv::line(image, pixel(layout, q.x, q.y), pixel(layout, m.x, m.y), colour, 2, cv::LINE_AA);
+    cv::circle(image, pixel(layout, q.x, q.y), 4, colour, 1, cv::LINE_AA);
+    cv::circle(image, pixel(layout, m.x, m.y), 4, colour, 1, cv::LINE_AA);
   }
+}
 
+void png_scale_bar(cv::Mat& image, const Layout& layout) {
   const double bar_m = layout.scale_bar_m();
   const int bar_px = static_cast<int>(std::lround(bar_m * layout.pixels_per_metre()));
-  const int bar_y = layout.scale_bar_y();
-  const cv::Point left{Layout::kMargin, bar_y};
+  const cv::Point left{Layout::kMargin, layout.scale_bar_y()};
   cv::line(image, left - cv::Point(0, 6), left, {0, 0, 0}, 1);
   cv::line(image, left, left + cv::Point(bar_px, 0), {0, 0, 0}, 1);
   cv::line(image, left + cv::Point(bar_px, 0), left + cv::Point(bar_px, -6), {0, 0, 0}, 1);
   cv::putText(image, length_text(bar_m), left + cv::Point(bar_px + 8, 4), cv::FONT_HERSHEY_SIMPLEX, 0.45,
               {0, 0, 0}, 1, cv::LINE_AA);
+}
 
+void png_legend(cv::Mat& image, const Layout& layout, const std::vector<WorldMarking>& markings) {
   int y = Layout::kTitle + Layout::kMargin + 10;
   const int x = layout.legend_x();
   const auto legend_line = [&](Rgb colour, const char* text) {
@@ -285,28 +279,59 @@ bool write_png(const std::string& path, const FigureContent& c, std::string& err
   legend_line(kCorrect, "correct loop");
   legend_line(kWrong, "wrong loop");
   y += 6;
-  for (const Label label : classes_present(*c.markings)) {
+  for (const Label label : classes_present(markings)) {
     cv::circle(image, {x + 11, y}, 4, bgr(kClassColours[label]), cv::FILLED, cv::LINE_AA);
     cv::putText(image, std::string(perception::marking_class_name(label)), {x + 30, y + 5},
                 cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1, cv::LINE_AA);
     y += 17;
   }
+}
 
-  // Encoded in memory, then written as every output is: a failed write says
-  // why (a full disk), where imwrite only returns false.
+// Encoded in memory, then written as every output is: a failed write says
+// why (a full disk), where imwrite only returns false.
+Status write_encoded_png(const std::string& path, const cv::Mat& image) {
   std::vector<std::uint8_t> png;
   bool encoded = false;
   try {
     encoded = cv::imencode(".png", image, png);
   } catch (const cv::Exception& e) {
-    error = path + ": cannot encode the PNG: " + e.what();
-    return false;
+    return error(path + ": cannot encode the PNG: " + e.what());
   }
-  if (!encoded) {
-    error = path + ": cannot encode the PNG";
-    return false;
-  }
-  return tools::write_whole_file(path, png.data(), png.size(), error);
+  if (!encoded) return error(path + ": cannot encode the PNG");
+  std::string problem;
+  if (!tools::write_whole_file(path, png.data(), png.size(), problem)) return error(problem);
+  return {};
+}
+
+}  // namespace
+
+Status write_svg(const std::string& path, const FigureContent& c) {
+  const Layout layout(c);
+  std::string problem;
+  tools::OutputFile file;
+  if (!file.open(path, problem)) return error(problem);
+  std::FILE* f = file.get();
+  svg_header(f, layout, c);
+  svg_route(f, layout, *c.route);
+  svg_markings_and_loops(f, layout, c);
+  svg_scale_bar(f, layout);
+  svg_legend(f, layout, *c.markings);
+  std::fprintf(f, "</svg>\n");
+  if (!file.close(problem)) return error(problem);
+  return {};
+}
+
+Status write_png(const std::string& path, const FigureContent& c) {
+  const Layout layout(c);
+  cv::Mat image(layout.height(), layout.width(), CV_8UC3, cv::Scalar(255, 255, 255));
+  cv::putText(image, c.title, {Layout::kMargin, 26}, cv::FONT_HERSHEY_SIMPLEX, 0.65, {0, 0, 0}, 2,
+              cv::LINE_AA);
+  cv::putText(image, c.subtitle, {Layout::kMargin, 50}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1,
+              cv::LINE_AA);
+  png_route_markings_and_loops(image, layout, c);
+  png_scale_bar(image, layout);
+  png_legend(image, layout, *c.markings);
+  return write_encoded_png(path, image);
 }
 
 }  // namespace markloop::eval

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "app/common/result.hpp"
 #include "app/engine/types.hpp"
 #include "app/tools/eval/inputs.hpp"
 #include "app/tools/eval/scoring.hpp"
@@ -21,9 +22,8 @@ struct FigureContent {
   std::string subtitle;
 };
 
-// Each returns false and sets `error` ("PATH: why") when the file cannot be
-// written.
-bool write_svg(const std::string& path, const FigureContent& content, std::string& error);
-bool write_png(const std::string& path, const FigureContent& content, std::string& error);
+// Each returns an error ("PATH: why") when the file cannot be written.
+Status write_svg(const std::string& path, const FigureContent& content);
+Status write_png(const std::string& path, const FigureContent& content);
 
 }  // namespace markloop::eval

@@ -50,16 +50,14 @@ std::optional<double> to_number(std::string_view text) {
 class CsvFile {
  public:
   template <typename Row>
-  static bool read(const std::string& path, std::string_view header, Row&& row, std::string& error) {
-    std::string text;
-    if (!tools::read_input(path, kMaxInputBytes, "a CSV file", text, error)) return false;
+  static Status read(const std::string& path, std::string_view header, Row&& row) {
+    std::string text, error;
+    if (!tools::read_input(path, kMaxInputBytes, "a CSV file", text, error)) return markloop::error(error);
     Progress progress(path, count_lines(text));
     tools::Lines lines(text);
     std::string_view line;
-    if (!lines.next(line) || trim(line) != header) {
-      error = path + ":1: expected the header '" + std::string(header) + "'";
-      return false;
-    }
+    if (!lines.next(line) || trim(line) != header)
+      return markloop::error(path + ":1: expected the header '" + std::string(header) + "'");
     const std::size_t columns = split_fields(header).size();
     while (lines.next(line)) {
       if ((lines.number() & 0xFFF) == 0) progress.update(lines.number());
@@ -71,13 +69,11 @@ class CsvFile {
                   "), found " + std::to_string(fields.size());
       else
         problem = row(fields);
-      if (!problem.empty()) {
-        error = path + ":" + std::to_string(lines.number()) + ": " + problem;
-        return false;
-      }
+      if (!problem.empty())
+        return markloop::error(path + ":" + std::to_string(lines.number()) + ": " + problem);
     }
     progress.finish();
-    return true;
+    return {};
   }
 };
 
@@ -176,11 +172,10 @@ std::size_t count_lines(std::string_view text) {
   return static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
 }
 
-bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out, std::string& error) {
-  out.clear();
-  return CsvFile::read(
-      path, "id,class,x,y,heading",
-      [&](const std::vector<std::string_view>& f) {
+Result<std::vector<WorldMarking>> load_world_markings(const std::string& path) {
+  std::vector<WorldMarking> out;
+  const Status read =
+      CsvFile::read(path, "id,class,x,y,heading", [&](const std::vector<std::string_view>& f) {
         std::string problem;
         WorldMarking m;
         if (whole_field("id", f[0], 4294967296.0, m.id, problem) &&
@@ -188,16 +183,15 @@ bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out
             number_field("y", f[3], m.y, problem) && number_field("heading", f[4], m.heading, problem))
           out.push_back(m);
         return problem;
-      },
-      error);
+      });
+  if (!read) return read.error();
+  return out;
 }
 
-bool load_visible(const std::string& path, std::size_t frame_count, std::vector<VisibleMarking>& out,
-                  std::string& error) {
-  out.clear();
-  const bool ok = CsvFile::read(
-      path, "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4",
-      [&](const std::vector<std::string_view>& f) {
+Result<std::vector<VisibleMarking>> load_visible(const std::string& path, std::size_t frame_count) {
+  std::vector<VisibleMarking> out;
+  const Status read = CsvFile::read(
+      path, "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4", [&](const std::vector<std::string_view>& f) {
         std::string problem;
         VisibleMarking m;
         if (frame_field("frame", f[0], frame_count, m.frame, problem) &&
@@ -205,17 +199,16 @@ bool load_visible(const std::string& path, std::size_t frame_count, std::vector<
             class_field("class", f[2], m.label, problem) && quad_fields(f, 3, m.quad, problem))
           out.push_back(m);
         return problem;
-      },
-      error);
+      });
+  if (!read) return read.error();
   std::stable_sort(out.begin(), out.end(),
                    [](const VisibleMarking& a, const VisibleMarking& b) { return a.frame < b.frame; });
-  return ok;
+  return out;
 }
 
-bool load_detections(const std::string& path, std::size_t frame_count, std::vector<DetectionRecord>& out,
-                     std::string& error) {
-  out.clear();
-  const bool ok = CsvFile::read(
+Result<std::vector<DetectionRecord>> load_detections(const std::string& path, std::size_t frame_count) {
+  std::vector<DetectionRecord> out;
+  const Status read = CsvFile::read(
       path, "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y",
       [&](const std::vector<std::string_view>& f) {
         std::string problem;
@@ -228,17 +221,16 @@ bool load_detections(const std::string& path, std::size_t frame_count, std::vect
         if (d.score < 0.0 || d.score > 1.0) return "score " + std::string(f[2]) + " is outside [0, 1]";
         out.push_back(d);
         return problem;
-      },
-      error);
+      });
+  if (!read) return read.error();
   std::stable_sort(out.begin(), out.end(),
                    [](const DetectionRecord& a, const DetectionRecord& b) { return a.frame < b.frame; });
-  return ok;
+  return out;
 }
 
-bool load_landmarks(const std::string& path, std::size_t frame_count, std::vector<LandmarkRecord>& out,
-                    std::string& error) {
-  out.clear();
-  return CsvFile::read(
+Result<std::vector<LandmarkRecord>> load_landmarks(const std::string& path, std::size_t frame_count) {
+  std::vector<LandmarkRecord> out;
+  const Status read = CsvFile::read(
       path, "label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose",
       [&](const std::vector<std::string_view>& f) {
         std::string problem;
@@ -259,8 +251,9 @@ bool load_landmarks(const std::string& path, std::size_t frame_count, std::vecto
         l.has_car_pose = has_car_pose == 1;
         out.push_back(l);
         return problem;
-      },
-      error);
+      });
+  if (!read) return read.error();
+  return out;
 }
 
 }  // namespace markloop::eval

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "app/common/result.hpp"
 #include "app/engine/types.hpp"
 
 namespace markloop::eval {
@@ -81,16 +82,13 @@ std::size_t count_lines(std::string_view text);
 // more than half a day of driving in the largest of them.
 inline constexpr std::size_t kMaxInputBytes = std::size_t{256} << 20;
 
-// Each returns false and sets `error` on a file that cannot be read, is a
-// directory or is over the limit ("FILE: what"), or a bad line. Frames
-// must lie in [0, frame_count) (the truth's frames). Results are sorted by
-// frame (stable).
-bool load_world_markings(const std::string& path, std::vector<WorldMarking>& out, std::string& error);
-bool load_visible(const std::string& path, std::size_t frame_count, std::vector<VisibleMarking>& out,
-                  std::string& error);
-bool load_detections(const std::string& path, std::size_t frame_count, std::vector<DetectionRecord>& out,
-                     std::string& error);
-bool load_landmarks(const std::string& path, std::size_t frame_count, std::vector<LandmarkRecord>& out,
-                    std::string& error);
+// Each returns an error on a file that cannot be read, is a directory or is
+// over the limit ("FILE: what"), or on a bad line ("FILE:LINE: what").
+// Frames must lie in [0, frame_count) (the truth's frames). Results are
+// sorted by frame (stable).
+Result<std::vector<WorldMarking>> load_world_markings(const std::string& path);
+Result<std::vector<VisibleMarking>> load_visible(const std::string& path, std::size_t frame_count);
+Result<std::vector<DetectionRecord>> load_detections(const std::string& path, std::size_t frame_count);
+Result<std::vector<LandmarkRecord>> load_landmarks(const std::string& path, std::size_t frame_count);
 
 }  // namespace markloop::eval

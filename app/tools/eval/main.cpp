@@ -1,6 +1,7 @@
 // markloop-eval: judges a run of the ECU against the simulator's truth: loop
 // precision and revisit recall, relative pose error, latency on the bus, and
 // marking detection/classification; draws the run as SVG and PNG.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -105,44 +106,56 @@ struct Options {
   double tolerance = 5.0;
 };
 
-Options parse(int argc, char** argv) {
-  Options o;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      std::exit(0);
-    }
-    if (!arg.starts_with("-")) {
-      if (!o.dir.empty()) fail("more than one DIR given: '" + o.dir + "' and '" + std::string(arg) + "'");
-      o.dir = arg;
-      continue;
-    }
-    const char* v = option_value(
-        argc, argv, i, {"--can", "--detections", "--landmarks", "--tolerance", "--svg", "--png", "--json"});
-    if (arg == "--can")
-      o.can = v;
-    else if (arg == "--detections")
-      o.detections = v, o.detections_given = true;
-    else if (arg == "--landmarks")
-      o.landmarks = v, o.landmarks_given = true;
-    else if (arg == "--tolerance")
-      o.tolerance = parse_number(arg, v);
-    else if (arg == "--svg")
-      o.svg = v;
-    else if (arg == "--png")
-      o.png = v;
-    else if (arg == "--json")
-      o.json = v;
-  }
-  if (o.dir.empty()) fail("DIR is required (see --help)");
-  if (!(o.tolerance > 0 && o.tolerance <= 10000)) fail("--tolerance must be in (0, 10000] metres");
+// The option table; kUsage above is the help text a user reads.
+constexpr OptionSpec kOptions[] = {
+    {"--can", "FILE", "the ECU's CAN output, candump -l log"},
+    {"--detections", "FILE", "the ECU's --detections-out CSV"},
+    {"--landmarks", "FILE", "the ECU's --landmarks-out CSV"},
+    {"--tolerance", "M", "a loop detection is correct within M metres"},
+    {"--svg", "FILE", "picture of the run"},
+    {"--png", "FILE", "the same picture as PNG"},
+    {"--json", "FILE", "every figure as JSON, for scripts"},
+};
+
+// One option as given, checked where it stands on the command line.
+void apply_option(std::string_view name, std::string_view value, Options& o) {
+  if (name == "--can") o.can = value;
+  if (name == "--detections") o.detections = value, o.detections_given = true;
+  if (name == "--landmarks") o.landmarks = value, o.landmarks_given = true;
+  if (name == "--tolerance") o.tolerance = parse_number(name, std::string(value).c_str());
+  if (name == "--svg") o.svg = value;
+  if (name == "--png") o.png = value;
+  if (name == "--json") o.json = value;
+}
+
+// The outputs and inputs not given, in DIR.
+void default_paths(Options& o) {
   const std::filesystem::path dir(o.dir);
   if (o.can.empty()) o.can = dir / "ecu-can.log";
   if (o.detections.empty()) o.detections = dir / "ecu-detections.csv";
   if (o.landmarks.empty()) o.landmarks = dir / "ecu-landmarks.csv";
   if (o.svg.empty()) o.svg = dir / "loops.svg";
   if (o.png.empty()) o.png = dir / "loops.png";
+}
+
+Options parse(int argc, char** argv) {
+  const ParsedArgs args = parse_args_or_fail(argc, argv, kOptions, 0, static_cast<std::size_t>(argc));
+  Options o;
+  // The options before --help are checked as given, as without it.
+  for (const ParsedArgs::Given& given : args.given()) apply_option(given.name, given.value, o);
+  const auto& dirs = args.positional();
+  // A lone "-" is no directory: standard input is not read.
+  if (std::find(dirs.begin(), dirs.end(), "-") != dirs.end()) fail("unknown option - (see --help)");
+  if (dirs.size() > 1)
+    fail("more than one DIR given: '" + std::string(dirs[0]) + "' and '" + std::string(dirs[1]) + "'");
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    std::exit(kExitOk);
+  }
+  if (dirs.empty()) fail("DIR is required (see --help)");
+  o.dir = dirs[0];
+  if (!(o.tolerance > 0 && o.tolerance <= 10000)) fail("--tolerance must be in (0, 10000] metres");
+  default_paths(o);
   return o;
 }
 
@@ -302,258 +315,125 @@ void print_passes(const PassScore& p) {
   if (unlisted > 0) std::printf("    ... %zu more (all in --json)\n", unlisted);
 }
 
-// Returns false with `error` when the file cannot be written.
-bool write_json(const std::string& path, const Options& o, std::size_t frames, double length_m,
-                const EcuCanLog& log, const LoopScore& loops, const MarkingScore* markings,
-                const LandmarkScore* landmarks, const std::vector<LandmarkRecord>& landmark_records,
-                const std::vector<WorldMarking>& world, const PassScore* passes, std::string& error) {
-  tools::OutputFile file;
-  if (!file.open(path, error)) return false;
-  std::FILE* f = file.get();
-  const replay::Evaluation& e = loops.evaluation;
-  std::fprintf(f, "{\"frames\":%zu,\"route_length_m\":%.1f,\"tolerance_m\":%g,", frames, length_m,
-               o.tolerance);
-  std::fprintf(f, "\"can\":{\"frames\":%llu,\"other_frames\":%llu,", (unsigned long long)log.frames,
-               (unsigned long long)log.other_frames);
-  json_rejects(f, "loop_detection", log.loop_frames);
-  std::fputc(',', f);
-  json_rejects(f, "status", log.status_frames);
-  std::fprintf(f, ",\"detections_incomplete\":%llu},", (unsigned long long)log.detections_incomplete);
-  const StatusSummary& s = log.status;
-  std::fprintf(
-      f,
-      "\"status\":{\"frames_processed\":%u,\"frames_dropped\":%u,\"loop_time_max_ms\":%.2f,"
-      "\"database_fill_percent\":%.1f,\"landmarks\":%u,\"sequences\":%u,\"last_state\":\"%s\","
-      "\"frames_blind\":%u,\"fault_frames\":{\"camera_lost\":%llu,\"camera_blind\":%llu,"
-      "\"odometry_timeout\":%llu,\"bus_error\":%llu,\"overrun\":%llu}},",
-      s.last.frames_processed, s.last.frames_dropped, s.loop_time_max_ms, s.last.database_fill_percent,
-      s.last.landmark_count, s.last.sequence_count, std::string(dbc::to_string(s.last.system_state)).c_str(),
-      s.last.frames_blind, (unsigned long long)s.camera_lost, (unsigned long long)s.camera_blind,
-      (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error, (unsigned long long)s.overrun);
-  std::fprintf(f,
-               "\"loops\":{\"detections\":%zu,\"correct\":%zu,\"wrong\":%zu,\"unjudged\":%zu,"
-               "\"revisit_segments\":%zu,\"revisit_segments_detected\":%zu,\"pose_errors\":%zu,"
-               "\"translation_error_mean_m\":%.4f,\"translation_error_max_m\":%.4f,"
-               "\"rotation_error_mean_deg\":%.4f,\"rotation_error_max_deg\":%.4f,"
-               "\"query_time_inconsistent\":%zu,",
-               loops.outcomes.size(), e.correct, e.wrong, e.unjudged, e.revisit_segments,
-               e.revisit_segments_detected, e.pose_errors, e.translation_error_mean_m,
-               e.translation_error_max_m, e.rotation_error_mean_deg, e.rotation_error_max_deg,
-               loops.query_time_inconsistent);
-  json_spread(f, "latency_s", loops.latency_s);
-  std::fputc(',', f);
-  json_spread(f, "processing_s", loops.processing_s);
-  std::fputc(',', f);
-  json_spread(f, "since_query_frame_s", loops.since_query_frame_s);
-  std::fprintf(f, ",\"missed_stretches\":[");
-  for (std::size_t i = 0; i < e.missed_stretches.size(); ++i) {
-    const replay::MissedStretch& m = e.missed_stretches[i];
-    std::fprintf(f, "%s{\"from_m\":%llu,\"to_m\":%llu,\"frames\":[%zu,%zu],\"first_visit_frames\":[%zu,%zu]}",
-                 i > 0 ? "," : "", (unsigned long long)(m.index * 100),
-                 (unsigned long long)((m.index + 1) * 100), m.first_frame, m.last_frame, m.first_visit_from,
-                 m.first_visit_to);
-  }
-  std::fprintf(f, "]");
-  std::fprintf(f, ",\"events\":[");
-  for (std::size_t i = 0; i < loops.outcomes.size(); ++i) {
-    const LoopOutcome& l = loops.outcomes[i];
-    std::fprintf(f,
-                 "%s{\"query_frame\":%u,\"match_frame\":%u,\"verdict\":\"%s\",\"true_distance_m\":%.3f,"
-                 "\"latency_s\":%.6f",
-                 i ? "," : "", l.pair.query, l.pair.match,
-                 l.verdict == Verdict::Correct ? "correct"
-                 : l.verdict == Verdict::Wrong ? "wrong"
-                                               : "unjudged",
-                 l.true_distance_m, l.latency_s);
-    if (l.pose_error)
-      std::fprintf(f, ",\"translation_error_m\":%.4f,\"rotation_error_deg\":%.4f",
-                   l.pose_error->translation_m, l.pose_error->rotation_deg);
-    std::fputc('}', f);
-  }
-  std::fprintf(f, "]}");
-  if (markings != nullptr) {
-    const MarkingScore& m = *markings;
-    std::fprintf(f,
-                 ",\"markings\":{\"visible\":%zu,\"detections\":%zu,\"matched\":%zu,\"right_label\":%zu,"
-                 "\"per_class\":{",
-                 m.truth, m.detections, m.matched, m.right_label);
-    bool first = true;
-    for (std::size_t c = 0; c < m.per_class.size(); ++c) {
-      const ClassScore& k = m.per_class[c];
-      if (k.truth == 0 && k.detections == 0) continue;
-      std::fprintf(f,
-                   "%s\"%s\":{\"visible\":%zu,\"found\":%zu,\"right_label\":%zu,\"detections\":%zu,"
-                   "\"detections_matched\":%zu}",
-                   first ? "" : ",", std::string(perception::kMarkingClassNames[c]).c_str(), k.truth,
-                   k.truth_found, k.truth_right_label, k.detections, k.detections_matched);
-      first = false;
-    }
-    std::fprintf(f, "},\"confusion\":[");
-    for (std::size_t t = 0; t < m.confusion.size(); ++t) {
-      std::fprintf(f, "%s[", t ? "," : "");
-      for (std::size_t d = 0; d < m.confusion[t].size(); ++d)
-        std::fprintf(f, "%s%zu", d ? "," : "", m.confusion[t][d]);
-      std::fputc(']', f);
-    }
-    std::fprintf(f, "]}");
-  }
-  if (landmarks != nullptr) {
-    const LandmarkScore& l = *landmarks;
-    std::fprintf(f,
-                 ",\"landmarks\":{\"count\":%zu,\"without_pose\":%zu,\"right_label\":%zu,\"wrong_label\":%zu,"
-                 "\"on_nothing\":%zu,",
-                 l.landmarks, l.without_pose, l.right_label, l.wrong_label, l.on_nothing);
-    json_spread(f, "distance_m", l.distance_m);
-    std::fprintf(f, ",\"misplaced\":[");
-    for (std::size_t i = 0; i < l.misplaced.size(); ++i) {
-      const MisplacedLandmark& m = l.misplaced[i];
-      const LandmarkRecord& r = landmark_records[m.landmark];
-      std::fprintf(
-          f, "%s{\"landmark\":%zu,\"label\":\"%s\",\"frames\":[%u,%u],\"at\":[%.3f,%.3f],\"judged\":\"%s\"",
-          i ? "," : "", m.landmark + 1, class_name(r.label).c_str(), r.first_frame, r.last_frame, m.x, m.y,
-          misplacement(l, m));
-      if (m.nearest)
-        std::fprintf(f, ",\"nearest\":{\"id\":%u,\"class\":\"%s\",\"distance_m\":%.3f}", world[*m.nearest].id,
-                     class_name(world[*m.nearest].label).c_str(), m.distance_m);
-      std::fputc('}', f);
-    }
-    std::fprintf(f, "]}");
-  }
-  if (passes != nullptr) {
-    const PassScore& p = *passes;
-    std::fprintf(f, ",\"passes\":{\"count\":%zu,\"cut_by_drive_ends\":%zu", p.passes.size(),
-                 p.cut_by_drive_ends);
-    for (std::size_t i = 0; i < kPassOutcomeCount; ++i)
-      std::fprintf(f, ",\"%s\":%zu", outcome_name(static_cast<PassOutcome>(i)), p.outcomes[i]);
-    std::fprintf(f, ",\"per_class\":{");
-    bool first = true;
-    for (std::size_t c = 0; c < p.passes_of_class.size(); ++c) {
-      if (p.passes_of_class[c] == 0) continue;
-      std::fprintf(f, "%s\"%s\":{\"passes\":%zu,\"named_right\":%zu}", first ? "" : ",",
-                   class_name(static_cast<Label>(c)).c_str(), p.passes_of_class[c],
-                   p.named_right_of_class[c]);
-      first = false;
-    }
-    std::fprintf(f, "},\"not_named_right\":[");
-    first = true;
-    for (const MarkingPass& pass : p.passes) {
-      if (pass.outcome == PassOutcome::NamedRight) continue;
-      std::fprintf(f,
-                   "%s{\"id\":%u,\"class\":\"%s\",\"frames\":[%u,%u],\"detections\":%zu,\"outcome\":\"%s\"",
-                   first ? "" : ",", pass.id, class_name(pass.label).c_str(), pass.first_frame,
-                   pass.last_frame, pass.detections, outcome_name(pass.outcome));
-      if (pass.outcome == PassOutcome::NamedWrong)
-        std::fprintf(f, ",\"named\":\"%s\"", class_name(pass.named).c_str());
-      std::fputc('}', f);
-      first = false;
-    }
-    std::fprintf(f, "]}");
-  }
-  std::fprintf(f, "}\n");
-  return file.close(error);
-}
-
-}  // namespace
-
-int main(int argc, char** argv) {
-  program_name() = "markloop-eval";
-  const Options o = parse(argc, argv);
-  check_outputs(o);
-  const std::filesystem::path dir(o.dir);
-  std::string error;
-
-  // Truth: frames.csv must be the simulator's, with its header (KITTI poses
-  // carry no times).
-  const std::string frames_path = dir / "frames.csv";
-  std::vector<Pose2> route;
+// Everything judged of one run: the truth, the ECU's outputs and their scores.
+struct Run {
+  Options o;
+  std::vector<Pose2> route;  // true pose per frame
   std::vector<double> times;
-  if (!replay::load_frames_csv(frames_path, route, times, error)) fail(error);
-  if (route.empty()) fail(frames_path + ": no frames");
-  for (std::size_t i = 1; i < times.size(); ++i)
-    if (!(times[i] > times[i - 1]))
-      fail(frames_path + ":" + std::to_string(i + 2) + ": time does not increase");
-
+  double length_m = 0.0;
   std::vector<WorldMarking> world;
-  if (!load_world_markings(dir / "markings.csv", world, error)) fail(error);
-
-  // The log's stamps must be the drive's clock (frames.csv's times).
-  const DriveTimes drive{times.empty() ? 0.0 : times.front(), times.empty() ? 0.0 : times.back()};
   EcuCanLog log;
-  if (!read_ecu_can_log(o.can, log, error, times.empty() ? nullptr : &drive)) fail(error);
-  for (const std::string& warning : can_log_warnings(o.can, log))
-    std::fprintf(stderr, "%s: warning: %s\n", program_name(), warning.c_str());
-
-  const replay::TruthJudge judge(route, o.tolerance, kRevisitSeparation_m);
-  const LoopScore loops = score_loops(judge, times, log.loops);
-
+  LoopScore loops;
   std::vector<VisibleMarking> visible;
   std::vector<DetectionRecord> detections;
-  std::string marking_note;
+  std::string marking_note;  // why the markings were not judged
   bool have_markings = false;
-  if (!o.detections_given && !std::filesystem::exists(o.detections)) {
-    marking_note = o.detections + " not found: marking detection not evaluated";
-  } else {
-    if (!load_detections(o.detections, route.size(), detections, error)) fail(error);
-    if (!load_visible(dir / "visible.csv", route.size(), visible, error)) fail(error);
-    have_markings = true;
-  }
-  const MarkingScore markings = have_markings ? score_markings(visible, detections) : MarkingScore{};
+  MarkingScore markings;
   std::vector<LandmarkRecord> landmarks;
-  std::string landmark_note;
+  std::string landmark_note;  // why the landmarks were not judged
   bool have_landmarks = false;
-  if (!o.landmarks_given && !std::filesystem::exists(o.landmarks)) {
-    landmark_note = o.landmarks + " not found: landmarks not evaluated";
-  } else {
-    if (!load_landmarks(o.landmarks, route.size(), landmarks, error)) fail(error);
-    have_landmarks = true;
-  }
-  const LandmarkScore placed = have_landmarks ? score_landmarks(world, route, landmarks) : LandmarkScore{};
+  LandmarkScore placed;
   // A pass's detections are told with it: it needs both files.
-  const bool have_passes = have_landmarks && have_markings;
-  const PassScore passes =
-      have_passes ? score_passes(world, route, times, visible, detections, markings, landmarks, placed)
-                  : PassScore{};
+  bool have_passes = false;
+  PassScore passes;
+};
 
-  // --- table ---
-  const double length_m = route_length_m(route);
-  const replay::Evaluation& e = loops.evaluation;
+// The value of `loaded`, or fail with its error.
+template <class T>
+T or_fail(Result<T> loaded) {
+  if (!loaded) fail(loaded.message());
+  return std::move(loaded).value();
+}
+
+// Truth: frames.csv must be the simulator's, with its header (KITTI poses
+// carry no times).
+void load_route(Run& r) {
+  const std::string frames_path = std::filesystem::path(r.o.dir) / "frames.csv";
+  replay::TruePoses truth = or_fail(replay::load_frames_csv(frames_path));
+  r.route = std::move(truth.poses);
+  r.times = std::move(truth.times);
+  if (r.route.empty()) fail(frames_path + ": no frames");
+  for (std::size_t i = 1; i < r.times.size(); ++i)
+    if (!(r.times[i] > r.times[i - 1]))
+      fail(frames_path + ":" + std::to_string(i + 2) + ": time does not increase");
+  r.length_m = route_length_m(r.route);
+}
+
+// The log's stamps must be the drive's clock (frames.csv's times).
+void load_can_log(Run& r) {
+  const DriveTimes drive{r.times.empty() ? 0.0 : r.times.front(), r.times.empty() ? 0.0 : r.times.back()};
+  r.log = or_fail(read_ecu_can_log(r.o.can, r.times.empty() ? nullptr : &drive));
+  for (const std::string& warning : can_log_warnings(r.o.can, r.log))
+    std::fprintf(stderr, "%s: warning: %s\n", program_name(), warning.c_str());
+}
+
+// The ECU's detections and landmarks, each skipped with a note when its
+// default file is absent.
+void load_ecu_outputs(Run& r) {
+  const Options& o = r.o;
+  if (!o.detections_given && !std::filesystem::exists(o.detections)) {
+    r.marking_note = o.detections + " not found: marking detection not evaluated";
+  } else {
+    r.detections = or_fail(load_detections(o.detections, r.route.size()));
+    r.visible = or_fail(load_visible(std::filesystem::path(o.dir) / "visible.csv", r.route.size()));
+    r.have_markings = true;
+  }
+  if (!o.landmarks_given && !std::filesystem::exists(o.landmarks)) {
+    r.landmark_note = o.landmarks + " not found: landmarks not evaluated";
+  } else {
+    r.landmarks = or_fail(load_landmarks(o.landmarks, r.route.size()));
+    r.have_landmarks = true;
+  }
+  r.have_passes = r.have_landmarks && r.have_markings;
+}
+
+void score(Run& r) {
+  const replay::TruthJudge judge(r.route, r.o.tolerance, kRevisitSeparation_m);
+  r.loops = score_loops(judge, r.times, r.log.loops);
+  if (r.have_markings) r.markings = score_markings(r.visible, r.detections);
+  if (r.have_landmarks) r.placed = score_landmarks(r.world, r.route, r.landmarks);
+  if (r.have_passes)
+    r.passes =
+        score_passes(r.world, r.route, r.times, r.visible, r.detections, r.markings, r.landmarks, r.placed);
+}
+
+void print_can(const Run& r) {
+  const EcuCanLog& log = r.log;
   std::printf("markloop-eval: %s: %zu frames (%.1f s), route %.2f km, %zu markings in the world\n",
-              o.dir.c_str(), route.size(), times.back() - times.front(), length_m / 1000.0, world.size());
-  std::printf("\nCAN output %s: %llu frames\n", o.can.c_str(), (unsigned long long)log.frames);
+              r.o.dir.c_str(), r.route.size(), r.times.back() - r.times.front(), r.length_m / 1000.0,
+              r.world.size());
+  std::printf("\nCAN output %s: %llu frames\n", r.o.can.c_str(), (unsigned long long)log.frames);
   print_rejects("LoopDetection", log.loop_frames);
   print_rejects("Status", log.status_frames);
   if (log.other_frames > 0) std::printf("  %-14s %8llu\n", "other ids", (unsigned long long)log.other_frames);
   std::printf("  %-14s %8zu complete, %llu incomplete (a page missing or rejected)\n", "detections",
               log.loops.size(), (unsigned long long)log.detections_incomplete);
+}
 
+void print_status(const EcuCanLog& log) {
   const StatusSummary& s = log.status;
-  if (log.status_frames.accepted > 0) {
-    std::printf("\nECU status (last values)\n");
-    std::printf("  %-34s %s\n", "state", std::string(dbc::to_string(s.last.system_state)).c_str());
-    if (s.page_seen[0])
-      std::printf("  %-34s %u (database %.1f %% full)\n", "frames processed", s.last.frames_processed,
-                  s.last.database_fill_percent);
-    if (s.page_seen[1]) {
-      std::printf("  %-34s %u\n", "frames dropped", s.last.frames_dropped);
-      std::printf("  %-34s %.2f ms\n", "longest loop time (any cycle)", s.loop_time_max_ms);
-    }
-    if (s.page_seen[2])
-      std::printf("  %-34s %u landmarks, %u sequences\n", "database", s.last.landmark_count,
-                  s.last.sequence_count);
-    if (s.page_seen[3]) std::printf("  %-34s %u\n", "frames showing no road", s.last.frames_blind);
-    std::printf(
-        "  %-34s camera lost %llu, camera blind %llu, odometry timeout %llu, bus error %llu, "
-        "overrun %llu\n",
-        "Status frames with a fault", (unsigned long long)s.camera_lost, (unsigned long long)s.camera_blind,
-        (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error,
-        (unsigned long long)s.overrun);
+  if (log.status_frames.accepted == 0) return;
+  std::printf("\nECU status (last values)\n");
+  std::printf("  %-34s %s\n", "state", std::string(dbc::to_string(s.last.system_state)).c_str());
+  if (s.page_seen[0])
+    std::printf("  %-34s %u (database %.1f %% full)\n", "frames processed", s.last.frames_processed,
+                s.last.database_fill_percent);
+  if (s.page_seen[1]) {
+    std::printf("  %-34s %u\n", "frames dropped", s.last.frames_dropped);
+    std::printf("  %-34s %.2f ms\n", "longest loop time (any cycle)", s.loop_time_max_ms);
   }
+  if (s.page_seen[2])
+    std::printf("  %-34s %u landmarks, %u sequences\n", "database", s.last.landmark_count,
+                s.last.sequence_count);
+  if (s.page_seen[3]) std::printf("  %-34s %u\n", "frames showing no road", s.last.frames_blind);
+  std::printf(
+      "  %-34s camera lost %llu, camera blind %llu, odometry timeout %llu, bus error %llu, "
+      "overrun %llu\n",
+      "Status frames with a fault", (unsigned long long)s.camera_lost, (unsigned long long)s.camera_blind,
+      (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error, (unsigned long long)s.overrun);
+}
 
-  std::printf("\nLoop detections (correct when the true positions are within %g m)\n", o.tolerance);
-  std::printf("  %-34s %zu\n", "detections", loops.outcomes.size());
-  std::printf("  %-34s %zu / %zu", "correct / wrong", e.correct, e.wrong);
-  if (e.unjudged > 0) std::printf(" (%zu beyond frames.csv)", e.unjudged);
-  std::printf("\n");
+void print_wrong_loops(const LoopScore& loops) {
   for (const LoopOutcome& l : loops.outcomes) {
     if (l.verdict != Verdict::Wrong) continue;
     std::printf("    wrong: frame %u against frame %u, %.1f m apart", l.pair.query, l.pair.match,
@@ -563,13 +443,10 @@ int main(int argc, char** argv) {
                   l.pose_error->rotation_deg);
     std::printf("\n");
   }
-  std::printf("  %-34s %s\n", "precision", percent_text(e.correct, e.correct + e.wrong).c_str());
-  std::printf("  %-34s %zu of %zu (%s)\n", "revisited 100 m stretches detected", e.revisit_segments_detected,
-              e.revisit_segments, percent_text(e.revisit_segments_detected, e.revisit_segments).c_str());
-  for (const replay::MissedStretch& m : e.missed_stretches)
-    std::printf("    missed %llu..%llu m: frames %zu..%zu revisit frames %zu..%zu\n",
-                (unsigned long long)(m.index * 100), (unsigned long long)((m.index + 1) * 100), m.first_frame,
-                m.last_frame, m.first_visit_from, m.first_visit_to);
+}
+
+void print_pose_error_and_latency(const LoopScore& loops) {
+  const replay::Evaluation& e = loops.evaluation;
   if (e.pose_errors > 0) {
     std::printf("  %-34s %.3f m, %.2f deg\n", "relative pose error, mean", e.translation_error_mean_m,
                 e.rotation_error_mean_deg);
@@ -587,55 +464,82 @@ int main(int argc, char** argv) {
         "  note: %zu of %zu detections carry a QueryTime before their QueryFrame or after\n"
         "        their send time (the DBC: capture time of the frame that completed it)\n",
         loops.query_time_inconsistent, loops.outcomes.size());
+}
 
-  if (have_markings) {
-    std::printf("\nMarkings (%s against visible.csv; match: centre inside or IoU >= %.1f)\n",
-                o.detections.c_str(), kMinIntersectionOverUnion);
-    std::printf("  %-34s %zu\n", "visible markings", markings.truth);
-    std::printf("  %-34s %zu\n", "detections", markings.detections);
-    std::printf("  %-34s %s (%zu of %zu)\n", "detection recall (any label)",
-                percent_text(markings.matched, markings.truth).c_str(), markings.matched, markings.truth);
-    std::printf("  %-34s %s (%zu of %zu)\n", "detection precision (any label)",
-                percent_text(markings.matched, markings.detections).c_str(), markings.matched,
-                markings.detections);
-    std::printf("  %-34s %s (%zu of %zu matched)\n", "classification accuracy",
-                percent_text(markings.right_label, markings.matched).c_str(), markings.right_label,
-                markings.matched);
-    std::printf("  %-14s %8s %8s %8s %10s %10s %9s\n", "class", "visible", "found", "recall", "detections",
-                "precision", "accuracy");
-    for (std::size_t c = 0; c < markings.per_class.size(); ++c) {
-      const ClassScore& k = markings.per_class[c];
-      if (k.truth == 0 && k.detections == 0) continue;
-      // Per class: recall = found with the right label / visible; precision =
-      // detections of this label on a marking of this class / detections of
-      // this label; accuracy = right label / found.
-      std::printf("  %-14s %8zu %8zu %8s %10zu %10s %9s\n",
-                  std::string(perception::kMarkingClassNames[c]).c_str(), k.truth, k.truth_found,
-                  percent_text(k.truth_right_label, k.truth).c_str(), k.detections,
-                  percent_text(markings.confusion[c][c], k.detections).c_str(),
-                  percent_text(k.truth_right_label, k.truth_found).c_str());
-    }
-  } else {
-    std::printf("\nMarkings: %s\n", marking_note.c_str());
+void print_loops(const Run& r) {
+  const LoopScore& loops = r.loops;
+  const replay::Evaluation& e = loops.evaluation;
+  std::printf("\nLoop detections (correct when the true positions are within %g m)\n", r.o.tolerance);
+  std::printf("  %-34s %zu\n", "detections", loops.outcomes.size());
+  std::printf("  %-34s %zu / %zu", "correct / wrong", e.correct, e.wrong);
+  if (e.unjudged > 0) std::printf(" (%zu beyond frames.csv)", e.unjudged);
+  std::printf("\n");
+  print_wrong_loops(loops);
+  std::printf("  %-34s %s\n", "precision", percent_text(e.correct, e.correct + e.wrong).c_str());
+  std::printf("  %-34s %zu of %zu (%s)\n", "revisited 100 m stretches detected", e.revisit_segments_detected,
+              e.revisit_segments, percent_text(e.revisit_segments_detected, e.revisit_segments).c_str());
+  for (const replay::MissedStretch& m : e.missed_stretches)
+    std::printf("    missed %llu..%llu m: frames %zu..%zu revisit frames %zu..%zu\n",
+                (unsigned long long)(m.index * 100), (unsigned long long)((m.index + 1) * 100), m.first_frame,
+                m.last_frame, m.first_visit_from, m.first_visit_to);
+  print_pose_error_and_latency(loops);
+}
+
+void print_marking_classes(const MarkingScore& markings) {
+  std::printf("  %-14s %8s %8s %8s %10s %10s %9s\n", "class", "visible", "found", "recall", "detections",
+              "precision", "accuracy");
+  for (std::size_t c = 0; c < markings.per_class.size(); ++c) {
+    const ClassScore& k = markings.per_class[c];
+    if (k.truth == 0 && k.detections == 0) continue;
+    // Per class: recall = found with the right label / visible; precision =
+    // detections of this label on a marking of this class / detections of
+    // this label; accuracy = right label / found.
+    std::printf("  %-14s %8zu %8zu %8s %10zu %10s %9s\n",
+                std::string(perception::kMarkingClassNames[c]).c_str(), k.truth, k.truth_found,
+                percent_text(k.truth_right_label, k.truth).c_str(), k.detections,
+                percent_text(markings.confusion[c][c], k.detections).c_str(),
+                percent_text(k.truth_right_label, k.truth_found).c_str());
   }
-  if (have_landmarks)
-    print_landmarks(placed, landmarks, world);
+}
+
+void print_markings(const Run& r) {
+  if (!r.have_markings) {
+    std::printf("\nMarkings: %s\n", r.marking_note.c_str());
+    return;
+  }
+  const MarkingScore& m = r.markings;
+  std::printf("\nMarkings (%s against visible.csv; match: centre inside or IoU >= %.1f)\n",
+              r.o.detections.c_str(), kMinIntersectionOverUnion);
+  std::printf("  %-34s %zu\n", "visible markings", m.truth);
+  std::printf("  %-34s %zu\n", "detections", m.detections);
+  std::printf("  %-34s %s (%zu of %zu)\n", "detection recall (any label)",
+              percent_text(m.matched, m.truth).c_str(), m.matched, m.truth);
+  std::printf("  %-34s %s (%zu of %zu)\n", "detection precision (any label)",
+              percent_text(m.matched, m.detections).c_str(), m.matched, m.detections);
+  std::printf("  %-34s %s (%zu of %zu matched)\n", "classification accuracy",
+              percent_text(m.right_label, m.matched).c_str(), m.right_label, m.matched);
+  print_marking_classes(m);
+}
+
+void print_table(const Run& r) {
+  print_can(r);
+  print_status(r.log);
+  print_loops(r);
+  print_markings(r);
+  if (r.have_landmarks)
+    print_landmarks(r.placed, r.landmarks, r.world);
   else
-    std::printf("\nLandmarks: %s\n", landmark_note.c_str());
-  if (have_passes)
-    print_passes(passes);
+    std::printf("\nLandmarks: %s\n", r.landmark_note.c_str());
+  if (r.have_passes)
+    print_passes(r.passes);
   else
     std::printf("\nMarkings driven past: need the detections and the landmarks: not evaluated\n");
+}
 
-  // --- picture ---
-  FigureContent figure;
-  figure.route = &route;
-  figure.markings = &world;
-  figure.loops = &loops.outcomes;
+// The picture's second line: the run's figures in brief.
+std::string figure_subtitle(const Run& r) {
+  const replay::Evaluation& e = r.loops.evaluation;
   char text[256];
-  std::snprintf(text, sizeof text, "markloop: %zu loop detections, %zu wrong (tolerance %g m)",
-                loops.outcomes.size(), e.wrong, o.tolerance);
-  figure.title = text;
   std::string subtitle = "precision " + percent_text(e.correct, e.correct + e.wrong);
   std::snprintf(text, sizeof text, ", revisits %zu/%zu", e.revisit_segments_detected, e.revisit_segments);
   subtitle += text;
@@ -644,24 +548,216 @@ int main(int argc, char** argv) {
                   e.rotation_error_mean_deg);
     subtitle += text;
   }
-  if (loops.since_query_frame_s.count > 0) {
+  if (r.loops.since_query_frame_s.count > 0) {
     std::snprintf(text, sizeof text, ", query frame to CAN median %.0f ms",
-                  loops.since_query_frame_s.median * 1000.0);
+                  r.loops.since_query_frame_s.median * 1000.0);
     subtitle += text;
   }
-  std::snprintf(text, sizeof text, ", route %.2f km", length_m / 1000.0);
-  subtitle += text;
-  figure.subtitle = subtitle;
-  if (!write_svg(o.svg, figure, error)) tools::fail_run(error);
-  if (!write_png(o.png, figure, error)) tools::fail_run(error);
-  std::printf("\npicture: %s, %s\n", o.svg.c_str(), o.png.c_str());
-  if (!o.json.empty()) {
-    if (!write_json(o.json, o, route.size(), length_m, log, loops, have_markings ? &markings : nullptr,
-                    have_landmarks ? &placed : nullptr, landmarks, world, have_passes ? &passes : nullptr,
-                    error))
-      tools::fail_run(error);
-    std::printf("figures: %s\n", o.json.c_str());
+  std::snprintf(text, sizeof text, ", route %.2f km", r.length_m / 1000.0);
+  return subtitle + text;
+}
+
+void draw_pictures(const Run& r) {
+  FigureContent figure;
+  figure.route = &r.route;
+  figure.markings = &r.world;
+  figure.loops = &r.loops.outcomes;
+  char text[256];
+  std::snprintf(text, sizeof text, "markloop: %zu loop detections, %zu wrong (tolerance %g m)",
+                r.loops.outcomes.size(), r.loops.evaluation.wrong, r.o.tolerance);
+  figure.title = text;
+  figure.subtitle = figure_subtitle(r);
+  if (const Status svg = write_svg(r.o.svg, figure); !svg) tools::fail_run(svg.message());
+  if (const Status png = write_png(r.o.png, figure); !png) tools::fail_run(png.message());
+  std::printf("\npicture: %s, %s\n", r.o.svg.c_str(), r.o.png.c_str());
+}
+
+void json_can(std::FILE* f, const EcuCanLog& log) {
+  std::fprintf(f, "\"can\":{\"frames\":%llu,\"other_frames\":%llu,", (unsigned long long)log.frames,
+               (unsigned long long)log.other_frames);
+  json_rejects(f, "loop_detection", log.loop_frames);
+  std::fputc(',', f);
+  json_rejects(f, "status", log.status_frames);
+  std::fprintf(f, ",\"detections_incomplete\":%llu},", (unsigned long long)log.detections_incomplete);
+  const StatusSummary& s = log.status;
+  std::fprintf(
+      f,
+      "\"status\":{\"frames_processed\":%u,\"frames_dropped\":%u,\"loop_time_max_ms\":%.2f,"
+      "\"database_fill_percent\":%.1f,\"landmarks\":%u,\"sequences\":%u,\"last_state\":\"%s\","
+      "\"frames_blind\":%u,\"fault_frames\":{\"camera_lost\":%llu,\"camera_blind\":%llu,"
+      "\"odometry_timeout\":%llu,\"bus_error\":%llu,\"overrun\":%llu}},",
+      s.last.frames_processed, s.last.frames_dropped, s.loop_time_max_ms, s.last.database_fill_percent,
+      s.last.landmark_count, s.last.sequence_count, std::string(dbc::to_string(s.last.system_state)).c_str(),
+      s.last.frames_blind, (unsigned long long)s.camera_lost, (unsigned long long)s.camera_blind,
+      (unsigned long long)s.odometry_timeout, (unsigned long long)s.bus_error, (unsigned long long)s.overrun);
+}
+
+const char* verdict_name(Verdict v) {
+  return v == Verdict::Correct ? "correct" : v == Verdict::Wrong ? "wrong" : "unjudged";
+}
+
+void json_loop_events(std::FILE* f, const LoopScore& loops) {
+  const replay::Evaluation& e = loops.evaluation;
+  std::fprintf(f, ",\"missed_stretches\":[");
+  for (std::size_t i = 0; i < e.missed_stretches.size(); ++i) {
+    const replay::MissedStretch& m = e.missed_stretches[i];
+    std::fprintf(f, "%s{\"from_m\":%llu,\"to_m\":%llu,\"frames\":[%zu,%zu],\"first_visit_frames\":[%zu,%zu]}",
+                 i > 0 ? "," : "", (unsigned long long)(m.index * 100),
+                 (unsigned long long)((m.index + 1) * 100), m.first_frame, m.last_frame, m.first_visit_from,
+                 m.first_visit_to);
   }
+  std::fprintf(f, "]");
+  std::fprintf(f, ",\"events\":[");
+  for (std::size_t i = 0; i < loops.outcomes.size(); ++i) {
+    const LoopOutcome& l = loops.outcomes[i];
+    std::fprintf(f,
+                 "%s{\"query_frame\":%u,\"match_frame\":%u,\"verdict\":\"%s\",\"true_distance_m\":%.3f,"
+                 "\"latency_s\":%.6f",
+                 i ? "," : "", l.pair.query, l.pair.match, verdict_name(l.verdict), l.true_distance_m,
+                 l.latency_s);
+    if (l.pose_error)
+      std::fprintf(f, ",\"translation_error_m\":%.4f,\"rotation_error_deg\":%.4f",
+                   l.pose_error->translation_m, l.pose_error->rotation_deg);
+    std::fputc('}', f);
+  }
+  std::fprintf(f, "]}");
+}
+
+void json_loops(std::FILE* f, const LoopScore& loops) {
+  const replay::Evaluation& e = loops.evaluation;
+  std::fprintf(f,
+               "\"loops\":{\"detections\":%zu,\"correct\":%zu,\"wrong\":%zu,\"unjudged\":%zu,"
+               "\"revisit_segments\":%zu,\"revisit_segments_detected\":%zu,\"pose_errors\":%zu,"
+               "\"translation_error_mean_m\":%.4f,\"translation_error_max_m\":%.4f,"
+               "\"rotation_error_mean_deg\":%.4f,\"rotation_error_max_deg\":%.4f,"
+               "\"query_time_inconsistent\":%zu,",
+               loops.outcomes.size(), e.correct, e.wrong, e.unjudged, e.revisit_segments,
+               e.revisit_segments_detected, e.pose_errors, e.translation_error_mean_m,
+               e.translation_error_max_m, e.rotation_error_mean_deg, e.rotation_error_max_deg,
+               loops.query_time_inconsistent);
+  json_spread(f, "latency_s", loops.latency_s);
+  std::fputc(',', f);
+  json_spread(f, "processing_s", loops.processing_s);
+  std::fputc(',', f);
+  json_spread(f, "since_query_frame_s", loops.since_query_frame_s);
+  json_loop_events(f, loops);
+}
+
+void json_markings(std::FILE* f, const MarkingScore& m) {
+  std::fprintf(f,
+               ",\"markings\":{\"visible\":%zu,\"detections\":%zu,\"matched\":%zu,\"right_label\":%zu,"
+               "\"per_class\":{",
+               m.truth, m.detections, m.matched, m.right_label);
+  bool first = true;
+  for (std::size_t c = 0; c < m.per_class.size(); ++c) {
+    const ClassScore& k = m.per_class[c];
+    if (k.truth == 0 && k.detections == 0) continue;
+    std::fprintf(f,
+                 "%s\"%s\":{\"visible\":%zu,\"found\":%zu,\"right_label\":%zu,\"detections\":%zu,"
+                 "\"detections_matched\":%zu}",
+                 first ? "" : ",", std::string(perception::kMarkingClassNames[c]).c_str(), k.truth,
+                 k.truth_found, k.truth_right_label, k.detections, k.detections_matched);
+    first = false;
+  }
+  std::fprintf(f, "},\"confusion\":[");
+  for (std::size_t t = 0; t < m.confusion.size(); ++t) {
+    std::fprintf(f, "%s[", t ? "," : "");
+    for (std::size_t d = 0; d < m.confusion[t].size(); ++d)
+      std::fprintf(f, "%s%zu", d ? "," : "", m.confusion[t][d]);
+    std::fputc(']', f);
+  }
+  std::fprintf(f, "]}");
+}
+
+void json_landmarks(std::FILE* f, const LandmarkScore& l, const std::vector<LandmarkRecord>& landmarks,
+                    const std::vector<WorldMarking>& world) {
+  std::fprintf(f,
+               ",\"landmarks\":{\"count\":%zu,\"without_pose\":%zu,\"right_label\":%zu,\"wrong_label\":%zu,"
+               "\"on_nothing\":%zu,",
+               l.landmarks, l.without_pose, l.right_label, l.wrong_label, l.on_nothing);
+  json_spread(f, "distance_m", l.distance_m);
+  std::fprintf(f, ",\"misplaced\":[");
+  for (std::size_t i = 0; i < l.misplaced.size(); ++i) {
+    const MisplacedLandmark& m = l.misplaced[i];
+    const LandmarkRecord& r = landmarks[m.landmark];
+    std::fprintf(
+        f, "%s{\"landmark\":%zu,\"label\":\"%s\",\"frames\":[%u,%u],\"at\":[%.3f,%.3f],\"judged\":\"%s\"",
+        i ? "," : "", m.landmark + 1, class_name(r.label).c_str(), r.first_frame, r.last_frame, m.x, m.y,
+        misplacement(l, m));
+    if (m.nearest)
+      std::fprintf(f, ",\"nearest\":{\"id\":%u,\"class\":\"%s\",\"distance_m\":%.3f}", world[*m.nearest].id,
+                   class_name(world[*m.nearest].label).c_str(), m.distance_m);
+    std::fputc('}', f);
+  }
+  std::fprintf(f, "]}");
+}
+
+void json_passes(std::FILE* f, const PassScore& p) {
+  std::fprintf(f, ",\"passes\":{\"count\":%zu,\"cut_by_drive_ends\":%zu", p.passes.size(),
+               p.cut_by_drive_ends);
+  for (std::size_t i = 0; i < kPassOutcomeCount; ++i)
+    std::fprintf(f, ",\"%s\":%zu", outcome_name(static_cast<PassOutcome>(i)), p.outcomes[i]);
+  std::fprintf(f, ",\"per_class\":{");
+  bool first = true;
+  for (std::size_t c = 0; c < p.passes_of_class.size(); ++c) {
+    if (p.passes_of_class[c] == 0) continue;
+    std::fprintf(f, "%s\"%s\":{\"passes\":%zu,\"named_right\":%zu}", first ? "" : ",",
+                 class_name(static_cast<Label>(c)).c_str(), p.passes_of_class[c], p.named_right_of_class[c]);
+    first = false;
+  }
+  std::fprintf(f, "},\"not_named_right\":[");
+  first = true;
+  for (const MarkingPass& pass : p.passes) {
+    if (pass.outcome == PassOutcome::NamedRight) continue;
+    std::fprintf(f, "%s{\"id\":%u,\"class\":\"%s\",\"frames\":[%u,%u],\"detections\":%zu,\"outcome\":\"%s\"",
+                 first ? "" : ",", pass.id, class_name(pass.label).c_str(), pass.first_frame, pass.last_frame,
+                 pass.detections, outcome_name(pass.outcome));
+    if (pass.outcome == PassOutcome::NamedWrong)
+      std::fprintf(f, ",\"named\":\"%s\"", class_name(pass.named).c_str());
+    std::fputc('}', f);
+    first = false;
+  }
+  std::fprintf(f, "]}");
+}
+
+// Every figure of the run as one JSON object; an error when the file cannot
+// be written.
+Status write_json(const std::string& path, const Run& r) {
+  std::string error;
+  tools::OutputFile file;
+  if (!file.open(path, error)) return markloop::error(error);
+  std::FILE* f = file.get();
+  std::fprintf(f, "{\"frames\":%zu,\"route_length_m\":%.1f,\"tolerance_m\":%g,", r.route.size(), r.length_m,
+               r.o.tolerance);
+  json_can(f, r.log);
+  json_loops(f, r.loops);
+  if (r.have_markings) json_markings(f, r.markings);
+  if (r.have_landmarks) json_landmarks(f, r.placed, r.landmarks, r.world);
+  if (r.have_passes) json_passes(f, r.passes);
+  std::fprintf(f, "}\n");
+  if (!file.close(error)) return markloop::error(error);
+  return {};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  program_name() = "markloop-eval";
+  Run r;
+  r.o = parse(argc, argv);
+  check_outputs(r.o);
+  load_route(r);
+  r.world = or_fail(load_world_markings(std::filesystem::path(r.o.dir) / "markings.csv"));
+  load_can_log(r);
+  load_ecu_outputs(r);
+  score(r);
+  print_table(r);
+  draw_pictures(r);
+  if (!r.o.json.empty()) {
+    if (const Status written = write_json(r.o.json, r); !written) tools::fail_run(written.message());
+    std::printf("figures: %s\n", r.o.json.c_str());
+  }
+  std::string error;
   if (!tools::flush_stdout(error)) tools::fail_run(error);
-  return 0;
+  return kExitOk;
 }

@@ -153,65 +153,95 @@ LandmarkScore score_landmarks(const std::vector<WorldMarking>& world, const std:
   return score;
 }
 
-PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
-                       const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
-                       const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
-                       const std::vector<LandmarkRecord>& landmarks, const LandmarkScore& placed,
-                       const PassRegion& region) {
-  PassScore score;
-  // The readers guarantee frames inside the route; anything else is not judged.
+namespace {
+
+// The readers guarantee frames inside the route; anything else is not judged.
+bool pass_inputs_consistent(const std::vector<Pose2>& route, const std::vector<double>& frame_times,
+                            const std::vector<VisibleMarking>& truth,
+                            const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
+                            const std::vector<LandmarkRecord>& landmarks, const LandmarkScore& placed) {
   if (frame_times.size() != route.size() || markings.paired_label.size() != truth.size() ||
       markings.detection_paired.size() != detections.size() || placed.marking_of.size() != landmarks.size())
-    return score;
+    return false;
   for (const VisibleMarking& t : truth)
-    if (t.frame >= route.size()) return score;
+    if (t.frame >= route.size()) return false;
   for (const DetectionRecord& d : detections)
-    if (d.frame >= route.size()) return score;
+    if (d.frame >= route.size()) return false;
+  return true;
+}
 
-  std::unordered_map<std::uint32_t, std::size_t> world_index;
-  for (std::size_t i = 0; i < world.size(); ++i) world_index.emplace(world[i].id, i);
-  // The landmarks on each marking.
-  std::unordered_multimap<std::size_t, std::size_t> landmarks_on;
-  for (std::size_t i = 0; i < landmarks.size(); ++i)
-    if (placed.marking_of[i]) landmarks_on.emplace(*placed.marking_of[i], i);
+// Judges the passes of the car by the world's markings, one run of visible
+// rows of one marking at a time.
+class PassJudge {
+ public:
+  PassJudge(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
+            const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
+            const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
+            const std::vector<LandmarkRecord>& landmarks, const LandmarkScore& placed,
+            const PassRegion& region)
+      : world_(world),
+        route_(route),
+        times_(frame_times),
+        truth_(truth),
+        detections_(detections),
+        markings_(markings),
+        landmarks_(landmarks),
+        region_(region),
+        rows_(truth.size()),
+        odometer_(route.size(), 0.0),
+        // Unpaired detections on the ground where a marking lies, in the
+        // frames visible.csv leaves it out of, are detections of it too.
+        taken_(markings.detection_paired) {
+    for (std::size_t i = 0; i < world.size(); ++i) world_index_.emplace(world[i].id, i);
+    for (std::size_t i = 0; i < landmarks.size(); ++i)
+      if (placed.marking_of[i]) landmarks_on_.emplace(*placed.marking_of[i], i);
+    // The visible rows of each marking in frame order (truth is sorted by frame).
+    for (std::size_t i = 0; i < rows_.size(); ++i) rows_[i] = i;
+    std::stable_sort(rows_.begin(), rows_.end(),
+                     [&](std::size_t a, std::size_t b) { return truth[a].id < truth[b].id; });
+    for (std::size_t f = 1; f < route.size(); ++f)
+      odometer_[f] = odometer_[f - 1] + std::hypot(route[f].x - route[f - 1].x, route[f].y - route[f - 1].y);
+  }
 
-  // The visible rows of each marking in frame order (truth is sorted by frame).
-  std::vector<std::size_t> rows(truth.size());
-  for (std::size_t i = 0; i < rows.size(); ++i) rows[i] = i;
-  std::stable_sort(rows.begin(), rows.end(),
-                   [&](std::size_t a, std::size_t b) { return truth[a].id < truth[b].id; });
-
-  auto time_of = [&](std::size_t row) { return frame_times[truth[row].frame]; };
-  std::vector<double> odometer(route.size(), 0.0);
-  for (std::size_t f = 1; f < route.size(); ++f)
-    odometer[f] = odometer[f - 1] + std::hypot(route[f].x - route[f - 1].x, route[f].y - route[f - 1].y);
-  // Unpaired detections on the ground where a marking lies, in the frames
-  // visible.csv leaves it out of, are detections of it too.
-  std::vector<bool> taken = markings.detection_paired;
-  auto by_frame = [](const DetectionRecord& d, FrameIndex f) { return d.frame < f; };
-
-  for (std::size_t begin = 0; begin < rows.size();) {
-    const VisibleMarking& first = truth[rows[begin]];
-    const auto found = world_index.find(first.id);
-    std::size_t end = begin + 1;
-    while (end < rows.size() && truth[rows[end]].id == first.id &&
-           time_of(rows[end]) - time_of(rows[end - 1]) <= kPassGap_s)
-      ++end;
-    if (found == world_index.end()) {
+  PassScore judge_all() {
+    PassScore score;
+    for (std::size_t begin = 0; begin < rows_.size();) {
+      const std::size_t end = end_of_pass(begin);
+      judge_pass(begin, end, score);
       begin = end;
-      continue;
     }
-    const WorldMarking& marking = world[found->second];
-    const FrameIndex pass_first = first.frame, pass_last = truth[rows[end - 1]].frame;
+    std::stable_sort(
+        score.passes.begin(), score.passes.end(),
+        [](const MarkingPass& a, const MarkingPass& b) { return a.first_frame < b.first_frame; });
+    return score;
+  }
+
+ private:
+  double time_of(std::size_t row) const { return times_[truth_[rows_[row]].frame]; }
+  const VisibleMarking& visible(std::size_t row) const { return truth_[rows_[row]]; }
+
+  // The row after the last of the pass starting at `begin`: the same
+  // marking, gaps under kPassGap_s.
+  std::size_t end_of_pass(std::size_t begin) const {
+    std::size_t end = begin + 1;
+    while (end < rows_.size() && visible(end).id == visible(begin).id &&
+           time_of(end) - time_of(end - 1) <= kPassGap_s)
+      ++end;
+    return end;
+  }
+
+  void judge_pass(std::size_t begin, std::size_t end, PassScore& score) {
+    const VisibleMarking& first = visible(begin);
+    const auto found = world_index_.find(first.id);
+    if (found == world_index_.end()) return;
+    const WorldMarking& marking = world_[found->second];
+    const FrameIndex pass_first = first.frame, pass_last = visible(end - 1).frame;
     bool in_range = false;
     for (std::size_t i = begin; i < end; ++i)
-      if (in_region(marking, route[truth[rows[i]].frame], region)) in_range = true;
-    const bool cut = pass_first == 0 || odometer.back() - odometer[pass_last] < kSettleDistance_m;
+      if (in_region(marking, route_[visible(i).frame], region_)) in_range = true;
+    const bool cut = pass_first == 0 || odometer_.back() - odometer_[pass_last] < kSettleDistance_m;
     if (in_range && cut) ++score.cut_by_drive_ends;
-    if (!in_range || cut) {
-      begin = end;
-      continue;
-    }
+    if (!in_range || cut) return;
 
     MarkingPass pass;
     pass.id = first.id;
@@ -219,46 +249,87 @@ PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector
     pass.first_frame = pass_first;
     pass.last_frame = pass_last;
     for (std::size_t i = begin; i < end; ++i)
-      if (markings.paired_label[rows[i]]) ++pass.detections;
+      if (markings_.paired_label[rows_[i]]) ++pass.detections;
     FrameIndex from = pass_first, to = pass_last;
-    while (from > 0 && frame_times[pass_first] - frame_times[from - 1] <= kPassMargin_s) --from;
-    while (to + 1 < route.size() && frame_times[to + 1] - frame_times[pass_last] <= kPassMargin_s) ++to;
+    while (from > 0 && times_[pass_first] - times_[from - 1] <= kPassMargin_s) --from;
+    while (to + 1 < route_.size() && times_[to + 1] - times_[pass_last] <= kPassMargin_s) ++to;
+    pass.detections += take_unlisted_detections(marking, begin, end, from, to);
+    name_by_landmark(found->second, from, to, pass);
+    record(pass, score);
+  }
+
+  // Detections within kSameMarking_m of the marking in the frames from..to
+  // where visible.csv does not list it, not yet taken.
+  std::size_t take_unlisted_detections(const WorldMarking& marking, std::size_t begin, std::size_t end,
+                                       FrameIndex from, FrameIndex to) {
+    const auto by_frame = [](const DetectionRecord& d, FrameIndex f) { return d.frame < f; };
+    std::size_t count = 0;
     std::size_t next_visible = begin;
     for (FrameIndex frame = from; frame <= to; ++frame) {
-      while (next_visible < end && truth[rows[next_visible]].frame < frame) ++next_visible;
-      if (next_visible < end && truth[rows[next_visible]].frame == frame) continue;
-      const Pose2 seen = in_car_frame(marking, route[frame]);
-      auto d = std::lower_bound(detections.begin(), detections.end(), frame, by_frame);
-      for (; d != detections.end() && d->frame == frame; ++d) {
-        const auto index = static_cast<std::size_t>(d - detections.begin());
-        if (taken[index] || std::hypot(d->ground_x - seen.x, d->ground_y - seen.y) > kSameMarking_m) continue;
-        taken[index] = true;
-        ++pass.detections;
+      while (next_visible < end && visible(next_visible).frame < frame) ++next_visible;
+      if (next_visible < end && visible(next_visible).frame == frame) continue;
+      const Pose2 seen = in_car_frame(marking, route_[frame]);
+      auto d = std::lower_bound(detections_.begin(), detections_.end(), frame, by_frame);
+      for (; d != detections_.end() && d->frame == frame; ++d) {
+        const auto index = static_cast<std::size_t>(d - detections_.begin());
+        if (taken_[index] || std::hypot(d->ground_x - seen.x, d->ground_y - seen.y) > kSameMarking_m)
+          continue;
+        taken_[index] = true;
+        ++count;
       }
     }
-    // The landmark the ECU made of the marking on this pass.
+    return count;
+  }
+
+  // The landmark the ECU made of the marking on this pass: of those on it
+  // seen within from..to, the one observed most.
+  void name_by_landmark(std::size_t marking, FrameIndex from, FrameIndex to, MarkingPass& pass) const {
     const LandmarkRecord* made = nullptr;
-    const auto [on_begin, on_end] = landmarks_on.equal_range(found->second);
+    const auto [on_begin, on_end] = landmarks_on_.equal_range(marking);
     for (auto it = on_begin; it != on_end; ++it) {
-      const LandmarkRecord& l = landmarks[it->second];
+      const LandmarkRecord& l = landmarks_[it->second];
       if (l.last_frame < from || l.first_frame > to) continue;
       if (made == nullptr || l.observations > made->observations) made = &l;
     }
-    if (made != nullptr) {
-      pass.named = made->label;
-      pass.outcome = made->label == pass.label ? PassOutcome::NamedRight : PassOutcome::NamedWrong;
-    }
+    if (made == nullptr) return;
+    pass.named = made->label;
+    pass.outcome = made->label == pass.label ? PassOutcome::NamedRight : PassOutcome::NamedWrong;
+  }
+
+  static void record(const MarkingPass& pass, PassScore& score) {
     score.passes.push_back(pass);
     ++score.outcomes[static_cast<std::size_t>(pass.outcome)];
     if (pass.label < score.passes_of_class.size()) {
       ++score.passes_of_class[pass.label];
       if (pass.outcome == PassOutcome::NamedRight) ++score.named_right_of_class[pass.label];
     }
-    begin = end;
   }
-  std::stable_sort(score.passes.begin(), score.passes.end(),
-                   [](const MarkingPass& a, const MarkingPass& b) { return a.first_frame < b.first_frame; });
-  return score;
+
+  const std::vector<WorldMarking>& world_;
+  const std::vector<Pose2>& route_;
+  const std::vector<double>& times_;
+  const std::vector<VisibleMarking>& truth_;
+  const std::vector<DetectionRecord>& detections_;
+  const MarkingScore& markings_;
+  const std::vector<LandmarkRecord>& landmarks_;
+  const PassRegion region_;
+  std::unordered_map<std::uint32_t, std::size_t> world_index_;
+  std::unordered_multimap<std::size_t, std::size_t> landmarks_on_;  // the landmarks on each marking
+  std::vector<std::size_t> rows_;
+  std::vector<double> odometer_;
+  std::vector<bool> taken_;
+};
+
+}  // namespace
+
+PassScore score_passes(const std::vector<WorldMarking>& world, const std::vector<Pose2>& route,
+                       const std::vector<double>& frame_times, const std::vector<VisibleMarking>& truth,
+                       const std::vector<DetectionRecord>& detections, const MarkingScore& markings,
+                       const std::vector<LandmarkRecord>& landmarks, const LandmarkScore& placed,
+                       const PassRegion& region) {
+  if (!pass_inputs_consistent(route, frame_times, truth, detections, markings, landmarks, placed)) return {};
+  return PassJudge(world, route, frame_times, truth, detections, markings, landmarks, placed, region)
+      .judge_all();
 }
 
 double intersection_over_union(const Quad& a, const Quad& b) {

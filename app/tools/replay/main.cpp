@@ -111,6 +111,32 @@ struct Options {
   EngineConfig engine;
 };
 
+// The option table; kUsage above is the help text a user reads.
+constexpr OptionSpec kOptions[] = {
+    {"--markings", "FILE", "detections, road_marking_centroids_3Dposition.txt format"},
+    {"--poses", "FILE", "one camera pose per frame (KITTI 3x4 [R|t])"},
+    {"--fps", "HZ", "frame rate, for time"},
+    {"--k", "N", "sequence length"},
+    {"--abs-tol", "M", "distance tolerance, absolute part"},
+    {"--rel-tol", "R", "distance tolerance, relative part"},
+    {"--min-separation", "M", "a match lies at least this far back"},
+    {"--min-separation-s", "S", "... and at least this long ago"},
+    {"--max-residual", "M", "largest RMS residual of the rigid fit"},
+    {"--association-radius", "M", "observations of one marking lie this close"},
+    {"--commit-after", "S", "a marking unseen this long has left view"},
+    {"--min-observations", "N", "detections needed to make a landmark"},
+    {"--skip-rows", "N", "rows a sequence may step over"},
+    {"--sequence-capacity", "N", "database size in sequences"},
+    {"--landmark-capacity", "N", "database size in landmarks"},
+    {"--compat", "", "run the authors' batch program instead"},
+    {"--out", "FILE", "matches in the authors' image_matches.txt format"},
+    {"--jsonl", "FILE", "one JSON record per match"},
+    {"--truth", "FILE", "ground truth: report correct and wrong matches"},
+    {"--truth-radius", "M", "a match is correct when its frames are this close"},
+    {"--sweep", "A..B", "run k = A..B and print a table of matches"},
+    {"--quiet", "", "print only the summary"},
+};
+
 // The documented range of a numeric option (see kUsage), checked where the
 // option is parsed so that the message names it: the engine's validate()
 // stays the last check, of the whole configuration.
@@ -120,19 +146,61 @@ struct Range {
   bool whole;        // a count: no fractions
 };
 
-constexpr Range kFpsRange{0.001, 1e6, "Hz", false};
-constexpr Range kTruthRadiusRange{0.01, 10000.0, "metres", false};
-constexpr Range kKRange{2, kMaxSequenceLength, "", true};
-constexpr Range kAbsTolRange{0.001, 100.0, "metres", false};
-constexpr Range kRelTolRange{0.0, 0.1, "", false};
-constexpr Range kMinSeparationRange{0.0, 10000.0, "metres", false};
-constexpr Range kMinSeparationSRange{0.0, 86400.0, "seconds", false};
-constexpr Range kMaxResidualRange{0.001, 100.0, "metres", false};
-constexpr Range kAssociationRadiusRange{0.01, 100.0, "metres", false};
-constexpr Range kCommitAfterRange{0.01, 100.0, "seconds", false};
-constexpr Range kMinObservationsRange{1, 1000, "", true};
-constexpr Range kSkipRowsRange{0, 1, "", true};
-constexpr Range kCapacityRange{16, double(std::size_t{1} << 30), "", true};
+// A numeric option: its range, and where its value goes.
+struct NumericOption {
+  std::string_view name;
+  Range range;
+  void (*set)(Options&, double);
+};
+
+constexpr double kCapacityMax = double(std::size_t{1} << 30);
+
+constexpr NumericOption kNumericOptions[] = {
+    {"--fps", {0.001, 1e6, "Hz", false}, [](Options& o, double v) { o.fps = v; }},
+    {"--truth-radius", {0.01, 10000.0, "metres", false}, [](Options& o, double v) { o.truth_radius = v; }},
+    {"--k",
+     {2, kMaxSequenceLength, "", true},
+     [](Options& o, double v) { o.engine.chain.k = static_cast<unsigned>(v); }},
+    {"--abs-tol",
+     {0.001, 100.0, "metres", false},
+     [](Options& o, double v) { o.engine.match.distance_tolerance_abs_m = v; }},
+    {"--rel-tol",
+     {0.0, 0.1, "", false},
+     [](Options& o, double v) { o.engine.match.distance_tolerance_rel = v; }},
+    {"--min-separation",
+     {0.0, 10000.0, "metres", false},
+     [](Options& o, double v) { o.engine.match.min_separation_m = v; }},
+    {"--min-separation-s",
+     {0.0, 86400.0, "seconds", false},
+     [](Options& o, double v) { o.engine.match.min_separation_s = v; }},
+    {"--max-residual",
+     {0.001, 100.0, "metres", false},
+     [](Options& o, double v) { o.engine.match.max_residual_m = v; }},
+    {"--association-radius",
+     {0.01, 100.0, "metres", false},
+     [](Options& o, double v) { o.engine.tracker.association_radius_m = v; }},
+    {"--commit-after",
+     {0.01, 100.0, "seconds", false},
+     [](Options& o, double v) { o.engine.tracker.commit_after_s = v; }},
+    {"--min-observations",
+     {1, 1000, "", true},
+     [](Options& o, double v) { o.engine.tracker.min_observations = static_cast<unsigned>(v); }},
+    {"--skip-rows",
+     {0, 1, "", true},
+     [](Options& o, double v) { o.engine.chain.max_skipped_rows = static_cast<unsigned>(v); }},
+    {"--sequence-capacity",
+     {16, kCapacityMax, "", true},
+     [](Options& o, double v) { o.engine.database.sequence_capacity = static_cast<std::size_t>(v); }},
+    {"--landmark-capacity",
+     {16, kCapacityMax, "", true},
+     [](Options& o, double v) { o.engine.database.landmark_capacity = static_cast<std::size_t>(v); }},
+};
+
+// The options that name a file, and where the name goes.
+constexpr std::pair<std::string_view, std::string Options::*> kFileOptions[] = {
+    {"--markings", &Options::markings}, {"--poses", &Options::poses}, {"--out", &Options::out},
+    {"--jsonl", &Options::jsonl},       {"--truth", &Options::truth},
+};
 
 std::string number_text(double v) {
   char buf[64];
@@ -165,106 +233,45 @@ double parse_in_range(std::string_view option, const char* text, const Range& r)
   return value;
 }
 
-unsigned parse_count(std::string_view option, const char* text, const Range& r) {
-  return static_cast<unsigned>(parse_in_range(option, text, r));
+// "--sweep A..B": fails unless 2 <= A <= B <= kMaxSequenceLength.
+void parse_sweep(const std::string& text, Options& o) {
+  const auto dots = text.find("..");
+  const std::string expected =
+      "--sweep: expected A..B with 2 <= A <= B <= " + std::to_string(kMaxSequenceLength) + ", found '" +
+      text + "'";
+  if (dots == std::string::npos) fail(expected);
+  const auto whole = [&](const std::string& part) {
+    char* end = nullptr;
+    const double value = std::strtod(part.c_str(), &end);
+    if (part.empty() || *end != '\0' || !(value >= 2 && value <= kMaxSequenceLength) ||
+        value != std::floor(value))
+      fail(expected);
+    return static_cast<unsigned>(value);
+  };
+  o.sweep_first = whole(text.substr(0, dots));
+  o.sweep_last = whole(text.substr(dots + 2));
+  if (o.sweep_first > o.sweep_last) fail(expected);
+}
+
+// One option as given, checked where it stands on the command line.
+void apply_option(std::string_view name, const std::string& value, Options& o) {
+  if (name == "--compat") o.compat = true;
+  if (name == "--quiet") o.quiet = true;
+  if (name == "--sweep") parse_sweep(value, o);
+  for (const auto& [option, member] : kFileOptions)
+    if (name == option) o.*member = value;
+  for (const NumericOption& n : kNumericOptions)
+    if (name == n.name) n.set(o, parse_in_range(name, value.c_str(), n.range));
 }
 
 Options parse(int argc, char** argv) {
+  const ParsedArgs args = parse_args_or_fail(argc, argv, kOptions);
   Options o;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      std::exit(0);
-    }
-    if (arg == "--compat") {
-      o.compat = true;
-      continue;
-    }
-    if (arg == "--quiet") {
-      o.quiet = true;
-      continue;
-    }
-    const char* v = option_value(argc, argv, i,
-                                 {"--markings",
-                                  "--poses",
-                                  "--out",
-                                  "--jsonl",
-                                  "--truth",
-                                  "--fps",
-                                  "--truth-radius",
-                                  "--k",
-                                  "--abs-tol",
-                                  "--rel-tol",
-                                  "--min-separation",
-                                  "--min-separation-s",
-                                  "--max-residual",
-                                  "--association-radius",
-                                  "--commit-after",
-                                  "--min-observations",
-                                  "--skip-rows",
-                                  "--sequence-capacity",
-                                  "--landmark-capacity",
-                                  "--sweep"});
-    EngineConfig& e = o.engine;
-    if (arg == "--markings")
-      o.markings = v;
-    else if (arg == "--poses")
-      o.poses = v;
-    else if (arg == "--out")
-      o.out = v;
-    else if (arg == "--jsonl")
-      o.jsonl = v;
-    else if (arg == "--truth")
-      o.truth = v;
-    else if (arg == "--fps")
-      o.fps = parse_in_range(arg, v, kFpsRange);
-    else if (arg == "--truth-radius")
-      o.truth_radius = parse_in_range(arg, v, kTruthRadiusRange);
-    else if (arg == "--k")
-      e.chain.k = parse_count(arg, v, kKRange);
-    else if (arg == "--abs-tol")
-      e.match.distance_tolerance_abs_m = parse_in_range(arg, v, kAbsTolRange);
-    else if (arg == "--rel-tol")
-      e.match.distance_tolerance_rel = parse_in_range(arg, v, kRelTolRange);
-    else if (arg == "--min-separation")
-      e.match.min_separation_m = parse_in_range(arg, v, kMinSeparationRange);
-    else if (arg == "--min-separation-s")
-      e.match.min_separation_s = parse_in_range(arg, v, kMinSeparationSRange);
-    else if (arg == "--max-residual")
-      e.match.max_residual_m = parse_in_range(arg, v, kMaxResidualRange);
-    else if (arg == "--association-radius")
-      e.tracker.association_radius_m = parse_in_range(arg, v, kAssociationRadiusRange);
-    else if (arg == "--commit-after")
-      e.tracker.commit_after_s = parse_in_range(arg, v, kCommitAfterRange);
-    else if (arg == "--min-observations")
-      e.tracker.min_observations = parse_count(arg, v, kMinObservationsRange);
-    else if (arg == "--skip-rows")
-      e.chain.max_skipped_rows = parse_count(arg, v, kSkipRowsRange);
-    else if (arg == "--sequence-capacity")
-      e.database.sequence_capacity = static_cast<std::size_t>(parse_in_range(arg, v, kCapacityRange));
-    else if (arg == "--landmark-capacity")
-      e.database.landmark_capacity = static_cast<std::size_t>(parse_in_range(arg, v, kCapacityRange));
-    else if (arg == "--sweep") {
-      const std::string text = v;
-      const auto dots = text.find("..");
-      const std::string expected =
-          "--sweep: expected A..B with 2 <= A <= B <= " + std::to_string(kMaxSequenceLength) + ", found '" +
-          text + "'";
-      if (dots == std::string::npos) fail(expected);
-      const std::string first = text.substr(0, dots), last = text.substr(dots + 2);
-      const auto whole = [&](const std::string& part) {
-        char* end = nullptr;
-        const double value = std::strtod(part.c_str(), &end);
-        if (part.empty() || *end != '\0' || !(value >= 2 && value <= kMaxSequenceLength) ||
-            value != std::floor(value))
-          fail(expected);
-        return static_cast<unsigned>(value);
-      };
-      o.sweep_first = whole(first);
-      o.sweep_last = whole(last);
-      if (o.sweep_first > o.sweep_last) fail(expected);
-    }
+  // The options before --help are checked as given, as without it.
+  for (const ParsedArgs::Given& given : args.given()) apply_option(given.name, std::string(given.value), o);
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    std::exit(kExitOk);
   }
   if (o.markings.empty()) fail("--markings FILE is required (see --help)");
   // The last check, of the whole configuration (each option was checked above).
@@ -417,134 +424,174 @@ void check_database_fits(const Options& o) {
   if (!problem.empty()) fail(problem);
 }
 
-int replay_main(int argc, char** argv) {
-  const Options o = parse(argc, argv);
-  check_outputs(o);
-  std::string error;
+// What every run of the replay works on: the inputs, checked and loaded.
+struct Replay {
+  Options o;
   std::vector<MarkingRecord> records;
-  if (!load_markings(o.markings, records, error)) fail(error);
-  warn_unordered(o.markings, records);
   std::vector<Pose2> poses;
+  std::unique_ptr<TruthJudge> judge;
+  LabelTable labels;
+};
+
+// The value of `loaded`, or fail with its error.
+template <class T>
+T or_fail(Result<T> loaded) {
+  if (!loaded) fail(loaded.message());
+  return std::move(loaded).value();
+}
+
+void load_inputs(Replay& r) {
+  const Options& o = r.o;
+  r.records = or_fail(load_markings(o.markings));
+  warn_unordered(o.markings, r.records);
   if (!o.poses.empty()) {
-    if (!load_kitti_poses(o.poses, poses, error)) fail(error);
-    check_covers(o.poses, poses.size(), "pose", o, records);
+    r.poses = or_fail(load_kitti_poses(o.poses));
+    check_covers(o.poses, r.poses.size(), "pose", o, r.records);
   }
   if (!o.compat) check_database_fits(o);
-  std::unique_ptr<TruthJudge> judge;
-  if (!o.truth.empty()) {
-    std::vector<Pose2> truth;
-    if (!load_truth(o.truth, truth, error)) fail(error);
-    check_covers(o.truth, truth.size(), "true pose", o, records);
-    judge = std::make_unique<TruthJudge>(std::move(truth), o.truth_radius, o.engine.match.min_separation_m);
-  }
-  LabelTable labels;
+  if (o.truth.empty()) return;
+  TruePoses truth = or_fail(load_truth(o.truth));
+  check_covers(o.truth, truth.poses.size(), "true pose", o, r.records);
+  r.judge =
+      std::make_unique<TruthJudge>(std::move(truth.poses), o.truth_radius, o.engine.match.min_separation_m);
+}
 
-  // One run: returns the frame pairs found, writing outputs when asked.
-  const auto run = [&](unsigned k, bool write) -> std::vector<FramePair> {
-    if (o.compat) {
-      CompatParameters parameters;
-      parameters.k = k;
-      const auto matches = run_compat(records, parameters, compat_progress(o.quiet));
-      if (write && !o.out.empty()) {
-        tools::OutputFile f;
-        if (!f.open(o.out, error)) tools::fail_run(error);
-        for (std::size_t i = 0; i < matches.size(); ++i) {
-          write_frames(f.get(), matches.earlier(i));
-          write_frames(f.get(), matches.later(i));
-        }
-        if (!f.close(error)) tools::fail_run(error);
-      }
-      return compat_pairs(matches);
-    }
-    EngineConfig config = o.engine;
-    config.chain.k = k;
-    const ReplayResult result = run_engine(records, poses, labels, config, o.fps);
-    if (write) {
-      if (!o.out.empty()) {
-        tools::OutputFile f;
-        if (!f.open(o.out, error)) tools::fail_run(error);
-        for (const MatchEvent& e : result.matches) {
-          write_frames(f.get(), frames_of(e, false));
-          write_frames(f.get(), frames_of(e, true));
-        }
-        if (!f.close(error)) tools::fail_run(error);
-      }
-      if (!o.jsonl.empty()) {
-        tools::OutputFile f;
-        if (!f.open(o.jsonl, error)) tools::fail_run(error);
-        for (const MatchEvent& e : result.matches) write_jsonl(f.get(), e, labels, judge.get());
-        if (!f.close(error)) tools::fail_run(error);
-      }
-      const auto& c = result.counters;
-      std::printf(
-          "markloop-replay: %zu detections in %zu frames -> %llu landmarks, %llu sequences "
-          "of k=%u, %llu queries, %llu candidates (%llu too recent, %llu failed the rigid "
-          "fit)\n",
-          records.size(), result.frames, (unsigned long long)c.landmarks_released,
-          (unsigned long long)c.sequences_created, k, (unsigned long long)c.queries,
-          (unsigned long long)c.candidates, (unsigned long long)c.candidates_too_recent,
-          (unsigned long long)c.candidates_rejected_residual);
-      if (!o.quiet) {
-        for (const MatchEvent& e : result.matches) {
-          std::printf("  loop: frame %u matches frame %u  [", e.query_frame(), e.match_frame());
-          for (unsigned i = 0; i < e.k; ++i)
-            std::printf("%s%s", i ? " " : "", labels.name(e.query[i].label).c_str());
-          std::printf("]  residual %.3f m  score %.2f", e.residual_m, e.score);
-          if (e.has_relative_pose)
-            std::printf("  relative pose (%.2f m, %.2f m, %.1f deg)", e.relative_pose.x, e.relative_pose.y,
-                        e.relative_pose.yaw * kDegPerRad);
-          if (judge && judge->covers(e.query_frame()) && judge->covers(e.match_frame()) &&
-              !judge->correct({e.query_frame(), e.match_frame()}))
-            std::printf("  WRONG");
-          std::printf("\n");
-        }
-      }
-      std::vector<FramePair> pairs = frame_pairs(result.matches);
-      std::printf("matches: %zu\n", result.matches.size());
-      if (judge) print_evaluation(judge->evaluate(pairs, relative_poses(result.matches)));
-      return pairs;
-    }
-    return frame_pairs(result.matches);
-  };
+// Opens `path`, lets `write` fill it, and closes it; a failed write fails the run.
+template <class Write>
+void write_output(const std::string& path, Write write) {
+  std::string error;
+  tools::OutputFile f;
+  if (!f.open(path, error)) tools::fail_run(error);
+  write(f.get());
+  if (!f.close(error)) tools::fail_run(error);
+}
 
-  if (o.sweep_first == 0) {
-    const auto pairs = run(o.engine.chain.k, true);
-    if (o.compat) {
-      std::printf("markloop-replay --compat: %zu records -> %zu matches (k=%u)\n", records.size(),
-                  pairs.size(), o.engine.chain.k);
-      if (judge) print_evaluation(judge->evaluate(pairs));
-    }
-    if (!tools::flush_stdout(error)) tools::fail_run(error);
-    return 0;
-  }
+std::vector<FramePair> run_compat_once(const Replay& r, unsigned k, bool write) {
+  CompatParameters parameters;
+  parameters.k = k;
+  const auto matches = run_compat(r.records, parameters, compat_progress(r.o.quiet));
+  if (write && !r.o.out.empty())
+    write_output(r.o.out, [&](FILE* f) {
+      for (std::size_t i = 0; i < matches.size(); ++i) {
+        write_frames(f, matches.earlier(i));
+        write_frames(f, matches.later(i));
+      }
+    });
+  return compat_pairs(matches);
+}
 
+void write_engine_outputs(const Replay& r, const ReplayResult& result) {
+  if (!r.o.out.empty())
+    write_output(r.o.out, [&](FILE* f) {
+      for (const MatchEvent& e : result.matches) {
+        write_frames(f, frames_of(e, false));
+        write_frames(f, frames_of(e, true));
+      }
+    });
+  if (!r.o.jsonl.empty())
+    write_output(r.o.jsonl, [&](FILE* f) {
+      for (const MatchEvent& e : result.matches) write_jsonl(f, e, r.labels, r.judge.get());
+    });
+}
+
+void print_counters(const Replay& r, const ReplayResult& result, unsigned k) {
+  const auto& c = result.counters;
+  std::printf(
+      "markloop-replay: %zu detections in %zu frames -> %llu landmarks, %llu sequences "
+      "of k=%u, %llu queries, %llu candidates (%llu too recent, %llu failed the rigid "
+      "fit)\n",
+      r.records.size(), result.frames, (unsigned long long)c.landmarks_released,
+      (unsigned long long)c.sequences_created, k, (unsigned long long)c.queries,
+      (unsigned long long)c.candidates, (unsigned long long)c.candidates_too_recent,
+      (unsigned long long)c.candidates_rejected_residual);
+}
+
+void print_loop(const Replay& r, const MatchEvent& e) {
+  std::printf("  loop: frame %u matches frame %u  [", e.query_frame(), e.match_frame());
+  for (unsigned i = 0; i < e.k; ++i)
+    std::printf("%s%s", i ? " " : "", r.labels.name(e.query[i].label).c_str());
+  std::printf("]  residual %.3f m  score %.2f", e.residual_m, e.score);
+  if (e.has_relative_pose)
+    std::printf("  relative pose (%.2f m, %.2f m, %.1f deg)", e.relative_pose.x, e.relative_pose.y,
+                e.relative_pose.yaw * kDegPerRad);
+  const TruthJudge* judge = r.judge.get();
+  if (judge && judge->covers(e.query_frame()) && judge->covers(e.match_frame()) &&
+      !judge->correct({e.query_frame(), e.match_frame()}))
+    std::printf("  WRONG");
+  std::printf("\n");
+}
+
+// One engine run with sequences of `k`; with `write`, its outputs and report.
+std::vector<FramePair> run_engine_once(Replay& r, unsigned k, bool write) {
+  EngineConfig config = r.o.engine;
+  config.chain.k = k;
+  const ReplayResult result = run_engine(r.records, r.poses, r.labels, config, r.o.fps);
+  std::vector<FramePair> pairs = frame_pairs(result.matches);
+  if (!write) return pairs;
+  write_engine_outputs(r, result);
+  print_counters(r, result, k);
+  if (!r.o.quiet)
+    for (const MatchEvent& e : result.matches) print_loop(r, e);
+  std::printf("matches: %zu\n", result.matches.size());
+  if (r.judge) print_evaluation(r.judge->evaluate(pairs, relative_poses(result.matches)));
+  return pairs;
+}
+
+// One run: returns the frame pairs found, writing outputs when asked.
+std::vector<FramePair> run_once(Replay& r, unsigned k, bool write) {
+  return r.o.compat ? run_compat_once(r, k, write) : run_engine_once(r, k, write);
+}
+
+void run_single(Replay& r) {
+  const unsigned k = r.o.engine.chain.k;
+  const auto pairs = run_once(r, k, true);
+  if (!r.o.compat) return;
+  std::printf("markloop-replay --compat: %zu records -> %zu matches (k=%u)\n", r.records.size(), pairs.size(),
+              k);
+  if (r.judge) print_evaluation(r.judge->evaluate(pairs));
+}
+
+// A sweep table row of percentages: part / judged, or "-" when none was judged.
+void print_share_row(const char* name, const std::vector<std::size_t>& part,
+                     const std::vector<std::size_t>& judged) {
+  std::printf("\n%-22s", name);
+  for (std::size_t i = 0; i < judged.size(); ++i)
+    judged[i] ? std::printf(" %6.1f", 100.0 * double(part[i]) / double(judged[i])) : std::printf(" %6s", "-");
+}
+
+void run_sweep(Replay& r) {
   std::printf("%-22s", "Search window size");
-  for (unsigned k = o.sweep_first; k <= o.sweep_last; ++k) std::printf(" %6u", k);
-  std::vector<std::size_t> counts, correct, judged;
-  for (unsigned k = o.sweep_first; k <= o.sweep_last; ++k) {
-    const auto pairs = run(k, false);
+  for (unsigned k = r.o.sweep_first; k <= r.o.sweep_last; ++k) std::printf(" %6u", k);
+  std::vector<std::size_t> counts, correct, wrong, judged;
+  for (unsigned k = r.o.sweep_first; k <= r.o.sweep_last; ++k) {
+    const auto pairs = run_once(r, k, false);
     counts.push_back(pairs.size());
-    if (judge) {
-      const Evaluation e = judge->evaluate(pairs);
-      correct.push_back(e.correct);
-      judged.push_back(e.correct + e.wrong);
-    }
+    if (!r.judge) continue;
+    const Evaluation e = r.judge->evaluate(pairs);
+    correct.push_back(e.correct);
+    wrong.push_back(e.wrong);
+    judged.push_back(e.correct + e.wrong);
   }
   std::printf("\n%-22s", "Number of matches");
   for (const std::size_t c : counts) std::printf(" %6zu", c);
-  if (judge) {
-    std::printf("\n%-22s", "Correct matches (%)");
-    for (std::size_t i = 0; i < counts.size(); ++i)
-      judged[i] ? std::printf(" %6.1f", 100.0 * double(correct[i]) / double(judged[i]))
-                : std::printf(" %6s", "-");
-    std::printf("\n%-22s", "Incorrect matches (%)");
-    for (std::size_t i = 0; i < counts.size(); ++i)
-      judged[i] ? std::printf(" %6.1f", 100.0 * double(judged[i] - correct[i]) / double(judged[i]))
-                : std::printf(" %6s", "-");
+  if (r.judge) {
+    print_share_row("Correct matches (%)", correct, judged);
+    print_share_row("Incorrect matches (%)", wrong, judged);
   }
   std::printf("\n");
+}
+
+int replay_main(int argc, char** argv) {
+  Replay r{parse(argc, argv), {}, {}, {}, {}};
+  check_outputs(r.o);
+  load_inputs(r);
+  if (r.o.sweep_first == 0)
+    run_single(r);
+  else
+    run_sweep(r);
+  std::string error;
   if (!tools::flush_stdout(error)) tools::fail_run(error);
-  return 0;
+  return kExitOk;
 }
 
 }  // namespace

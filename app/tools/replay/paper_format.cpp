@@ -1,5 +1,6 @@
 #include "app/tools/replay/paper_format.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -83,73 +84,85 @@ Label LabelTable::intern(const std::string& name) {
   return it->second;
 }
 
-bool load_markings(const std::string& path, std::vector<MarkingRecord>& records, std::string& error) {
-  Tokens tokens;
-  if (!tokens.open(path, error)) return false;
-  records.clear();
+namespace {
+
+// The record count the file declares first.
+Result<long long> read_count(Tokens& tokens) {
   std::string_view token;
   int line = 1;
-  if (!tokens.next(token, line)) {
-    error = tokens.where(tokens.line()) + "empty file: expected the number of records";
-    return false;
-  }
+  if (!tokens.next(token, line))
+    return error(tokens.where(tokens.line()) + "empty file: expected the number of records");
   long long count = 0;
-  if (!parse_number(token, count) || count < 0) {
-    error = tokens.where(line) + "expected the number of records, found '" + std::string(token) + "'";
-    return false;
+  if (!parse_number(token, count) || count < 0)
+    return error(tokens.where(line) + "expected the number of records, found '" + std::string(token) + "'");
+  return count;
+}
+
+// One field of record `index` (from 0) read from `token`; false when it is
+// not what the field holds.
+bool read_field(int field, std::string_view token, MarkingRecord& r) {
+  switch (field) {
+    case 0:
+      return parse_number(token, r.frame) && r.frame >= 0;
+    case 1:
+      return parse_number(token, r.x);
+    case 2:
+      return parse_number(token, r.y);
+    case 3:
+      return parse_number(token, r.z);
+    default:
+      r.label = std::string(token.substr(0, kMaxLabelLength + 1));
+      return true;
   }
+}
+
+// Record `index` (from 0) of the `count` declared: frame x y z label.
+Result<MarkingRecord> read_record(Tokens& tokens, long long index, long long count) {
+  static constexpr const char* kFields[] = {"frame index", "x", "y", "z", "label"};
+  MarkingRecord r;
+  const std::string record = "record " + std::to_string(index + 1);
+  std::string_view token;
+  int line = 1;
+  for (int field = 0; field < 5; ++field) {
+    if (!tokens.next(token, line))
+      return error(tokens.where(tokens.line()) + "the file declares " + std::to_string(count) +
+                   " records but ends inside " + record + " (missing " + kFields[field] + ")");
+    if (field == 0) r.line = line;
+    const bool ok = read_field(field, token, r);
+    if (field == 4 && token.size() > kMaxLabelLength)
+      return error(tokens.where(line) + record + ": label is longer than " + std::to_string(kMaxLabelLength) +
+                   " characters");
+    if (!ok)
+      return error(tokens.where(line) + record + ": " + kFields[field] + " is not " +
+                   (field == 0 ? "a non-negative integer" : "a finite number") + ": '" + std::string(token) +
+                   "'");
+  }
+  return r;
+}
+
+}  // namespace
+
+Result<std::vector<MarkingRecord>> load_markings(const std::string& path) {
+  Tokens tokens;
+  std::string problem;
+  if (!tokens.open(path, problem)) return error(problem);
+  const Result<long long> count = read_count(tokens);
+  if (!count) return count.error();
+  std::vector<MarkingRecord> records;
   // A record takes at least 10 characters ("0 0 0 0 A\n"): the declared
   // count reserves no more than the file can hold.
-  records.reserve(std::min(static_cast<std::size_t>(count), tokens.size() / 10));
-  static constexpr const char* kFields[] = {"frame index", "x", "y", "z", "label"};
-  for (long long i = 0; i < count; ++i) {
-    MarkingRecord r;
-    for (int field = 0; field < 5; ++field) {
-      if (!tokens.next(token, line)) {
-        error = tokens.where(tokens.line()) + "the file declares " + std::to_string(count) +
-                " records but ends inside record " + std::to_string(i + 1) + " (missing " + kFields[field] +
-                ")";
-        return false;
-      }
-      if (field == 0) r.line = line;
-      bool ok = true;
-      switch (field) {
-        case 0:
-          ok = parse_number(token, r.frame) && r.frame >= 0;
-          break;
-        case 1:
-          ok = parse_number(token, r.x);
-          break;
-        case 2:
-          ok = parse_number(token, r.y);
-          break;
-        case 3:
-          ok = parse_number(token, r.z);
-          break;
-        default:
-          r.label = std::string(token.substr(0, kMaxLabelLength + 1));
-          break;
-      }
-      if (field == 4 && token.size() > kMaxLabelLength) {
-        error = tokens.where(line) + "record " + std::to_string(i + 1) + ": label is longer than " +
-                std::to_string(kMaxLabelLength) + " characters";
-        return false;
-      }
-      if (!ok) {
-        error = tokens.where(line) + "record " + std::to_string(i + 1) + ": " + kFields[field] + " is not " +
-                (field == 0 ? "a non-negative integer" : "a finite number") + ": '" + std::string(token) +
-                "'";
-        return false;
-      }
-    }
-    records.push_back(std::move(r));
+  records.reserve(std::min(static_cast<std::size_t>(*count), tokens.size() / 10));
+  for (long long i = 0; i < *count; ++i) {
+    Result<MarkingRecord> record = read_record(tokens, i, *count);
+    if (!record) return record.error();
+    records.push_back(std::move(record).value());
   }
-  if (tokens.next(token, line)) {
-    error = tokens.where(line) + "more data after the " + std::to_string(count) + " declared records: '" +
-            std::string(token) + "'";
-    return false;
-  }
-  return true;
+  std::string_view token;
+  int line = 1;
+  if (tokens.next(token, line))
+    return error(tokens.where(line) + "more data after the " + std::to_string(*count) +
+                 " declared records: '" + std::string(token) + "'");
+  return records;
 }
 
 namespace {
@@ -265,41 +278,40 @@ constexpr std::string_view kFramesHeader = "frame,t,x,y,yaw";
 
 }  // namespace
 
-bool load_kitti_poses(const std::string& path, std::vector<Pose2>& poses, std::string& error) {
-  poses.clear();
-  std::string text;
-  if (!tools::read_input(path, kMaxPosesBytes, "a poses file", text, error)) return false;
+Result<std::vector<Pose2>> load_kitti_poses(const std::string& path) {
+  std::vector<Pose2> poses;
+  std::string text, problem;
+  if (!tools::read_input(path, kMaxPosesBytes, "a poses file", text, problem)) return error(problem);
   tools::Lines lines(text);
-  return read_kitti_lines(lines, path, poses, error);
+  if (!read_kitti_lines(lines, path, poses, problem)) return error(problem);
+  return poses;
 }
 
-bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error,
-                std::vector<double>* times) {
-  poses.clear();
-  if (times != nullptr) times->clear();
-  std::string text;
-  if (!tools::read_input(path, kMaxPosesBytes, "a ground truth file", text, error)) return false;
+Result<TruePoses> load_truth(const std::string& path) {
+  TruePoses truth;
+  std::string text, problem;
+  if (!tools::read_input(path, kMaxPosesBytes, "a ground truth file", text, problem)) return error(problem);
   tools::Lines lines(text);
   std::string_view header;
-  if (lines.next(header) && trim(header) == kFramesHeader)
-    return read_frames_csv_lines(lines, path, poses, times, error);
-  tools::Lines from_start(text);
-  return read_kitti_lines(from_start, path, poses, error);
-}
-
-bool load_frames_csv(const std::string& path, std::vector<Pose2>& poses, std::vector<double>& times,
-                     std::string& error) {
-  poses.clear();
-  times.clear();
-  std::string text;
-  if (!tools::read_input(path, kMaxPosesBytes, "a frames.csv file", text, error)) return false;
-  tools::Lines lines(text);
-  std::string_view header;
-  if (!lines.next(header) || trim(header) != kFramesHeader) {
-    error = where(path, 1) + "expected the header '" + std::string(kFramesHeader) + "'";
-    return false;
+  if (lines.next(header) && trim(header) == kFramesHeader) {
+    if (!read_frames_csv_lines(lines, path, truth.poses, &truth.times, problem)) return error(problem);
+    return truth;
   }
-  return read_frames_csv_lines(lines, path, poses, &times, error);
+  tools::Lines from_start(text);
+  if (!read_kitti_lines(from_start, path, truth.poses, problem)) return error(problem);
+  return truth;
+}
+
+Result<TruePoses> load_frames_csv(const std::string& path) {
+  TruePoses truth;
+  std::string text, problem;
+  if (!tools::read_input(path, kMaxPosesBytes, "a frames.csv file", text, problem)) return error(problem);
+  tools::Lines lines(text);
+  std::string_view header;
+  if (!lines.next(header) || trim(header) != kFramesHeader)
+    return error(where(path, 1) + "expected the header '" + std::string(kFramesHeader) + "'");
+  if (!read_frames_csv_lines(lines, path, truth.poses, &truth.times, problem)) return error(problem);
+  return truth;
 }
 
 }  // namespace markloop::replay

@@ -8,6 +8,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "app/common/result.hpp"
 #include "app/engine/types.hpp"
 
 namespace markloop::replay {
@@ -50,20 +51,23 @@ inline constexpr double kMaxTime_s = 3.2e9;
 // Labels are class names: a longer one is no label (a line gone wrong).
 inline constexpr std::size_t kMaxLabelLength = 64;
 
-// Each loader returns false and sets `error` ("FILE:LINE: what") on bad input
-// ("FILE: what" when the file cannot be read, is a directory or is too big).
-bool load_markings(const std::string& path, std::vector<MarkingRecord>& records, std::string& error);
+// Each loader returns an error ("FILE:LINE: what") on bad input ("FILE:
+// what" when the file cannot be read, is a directory or is too big).
+Result<std::vector<MarkingRecord>> load_markings(const std::string& path);
 // One 3x4 row-major [R|t] camera pose per line (KITTI odometry), line i for
 // frame i, converted to the ground frame (x ahead = z, y left = -x).
-bool load_kitti_poses(const std::string& path, std::vector<Pose2>& poses, std::string& error);
-// Ground truth per frame: the simulator's frames.csv (header frame,t,x,y,yaw)
-// or KITTI poses. `times`, when given, receives frames.csv's t per frame
-// (left empty for KITTI poses, which carry no time).
-bool load_truth(const std::string& path, std::vector<Pose2>& poses, std::string& error,
-                std::vector<double>* times = nullptr);
-// The simulator's frames.csv only (its header required): poses and times.
-bool load_frames_csv(const std::string& path, std::vector<Pose2>& poses, std::vector<double>& times,
-                     std::string& error);
+Result<std::vector<Pose2>> load_kitti_poses(const std::string& path);
+
+// Ground truth: a pose per frame and, from the simulator's frames.csv, its
+// time (none from KITTI poses, which carry no time).
+struct TruePoses {
+  std::vector<Pose2> poses;
+  std::vector<double> times;
+};
+// The simulator's frames.csv (header frame,t,x,y,yaw) or KITTI poses.
+Result<TruePoses> load_truth(const std::string& path);
+// The simulator's frames.csv only (its header required).
+Result<TruePoses> load_frames_csv(const std::string& path);
 
 // The paper's camera-style axes to the engine's ground frame.
 inline Observation to_ground(const MarkingRecord& r, Label label) {
