@@ -44,8 +44,9 @@ echo "snapshot: ECU on $drive"
   --calibration "$drive/camera.yaml" --can-out "$out/ecu-can.log" \
   --detections-out "$out/ecu-detections.csv" --landmarks-out "$out/ecu-landmarks.csv" \
   --set realtime.mlockall=false --quiet
-# Status frames (0x2B0) carry timings; every other frame must match.
-grep -v ' 2B0#' "$out/ecu-can.log" >"$out/ecu-can-frames.txt" || true
+# Status frames (0x2B0) and the times frames are sent at carry the run's
+# timings; the frames themselves must match.
+grep -v ' 2B0#' "$out/ecu-can.log" | sed 's/^([0-9.]*) //' >"$out/ecu-can-frames.txt" || true
 
 echo "snapshot: replay"
 for k in 3 4 6; do
