@@ -183,11 +183,12 @@ int main(int argc, char** argv) {
   }
 
   if (!config.calibration.empty()) {
-    std::string error;
-    auto camera = markloop::perception::load_camera_model(config.calibration, error);
-    if (!camera) fail(error);
+    auto camera = markloop::perception::load_camera_model(config.calibration);
+    if (!camera) fail(camera.message());
     options.camera = *camera;
-    if (!markloop::perception::load_detector_config(config.calibration, options.detector, error)) fail(error);
+    auto detector = markloop::perception::load_detector_config(config.calibration, options.detector);
+    if (!detector) fail(detector.message());
+    options.detector = *detector;
   }
   // The detector reports nothing under its own threshold, so a gate set
   // lower would let no more through: say so instead of ignoring it.

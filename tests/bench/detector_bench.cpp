@@ -96,14 +96,15 @@ int main(int argc, char** argv) {
   if (frames == 0) markloop::cli::fail("--frames must be at least 1");
   if (frame_source != nullptr && !y4m_path.empty())
     markloop::cli::fail(std::string("--") + frame_source + " and --y4m: give one of them");
-  std::string error;
   CameraModel camera = default_camera_model();
   DetectorConfig config;
   if (!camera_path.empty()) {
-    const auto loaded = load_camera_model(camera_path, error);
-    if (!loaded) markloop::cli::fail(error);
+    const auto loaded = load_camera_model(camera_path);
+    if (!loaded) markloop::cli::fail(loaded.message());
     camera = *loaded;
-    if (!load_detector_config(camera_path, config, error)) markloop::cli::fail(error);
+    const auto detector_config = load_detector_config(camera_path);
+    if (!detector_config) markloop::cli::fail(detector_config.message());
+    config = *detector_config;
   }
   config.horizon_from_lanes = config.horizon_from_lanes || horizon_from_lanes;
   MarkingDetector detector(camera, config);

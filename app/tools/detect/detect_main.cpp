@@ -202,11 +202,12 @@ int main(int argc, char** argv) {
   // would be empty the second time.
   if (!std::filesystem::is_regular_file(camera_status))
     markloop::cli::fail(camera_path + ": not a regular file, which a calibration must be");
+  const auto camera = load_camera_model(camera_path);
+  if (!camera) markloop::cli::fail(camera.message());
+  auto loaded = load_detector_config(camera_path);
+  if (!loaded) markloop::cli::fail(loaded.message());
+  DetectorConfig config = *loaded;
   std::string error;
-  const auto camera = load_camera_model(camera_path, error);
-  if (!camera) markloop::cli::fail(error);
-  DetectorConfig config;
-  if (!load_detector_config(camera_path, config, error)) markloop::cli::fail(error);
   if (min_score >= 0.0) config.min_score = static_cast<float>(min_score);
   if (whole_only) config.report_partial_in_stills = false;
   MarkingDetector detector(*camera, config);
