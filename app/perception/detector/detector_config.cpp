@@ -1,6 +1,5 @@
 #include "app/perception/detector/detector_config.hpp"
 
-#include <cmath>
 #include <exception>
 #include <optional>
 #include <string>
