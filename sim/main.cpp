@@ -104,9 +104,8 @@ that cannot be opened.
 
 perception::CameraModel camera_from(const std::string& path) {
   if (path.empty()) return perception::default_camera_model();
-  std::string error;
-  auto model = perception::load_camera_model(path, error);
-  if (!model) fail(error);
+  auto model = perception::load_camera_model(path);
+  if (!model) fail(model.message());
   return *model;
 }
 

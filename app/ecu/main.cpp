@@ -156,11 +156,12 @@ void check_configuration(const markloop::ecu::RunOptions& options, const std::st
 void load_calibration(markloop::ecu::RunOptions& options) {
   const std::string& path = options.config.calibration;
   if (path.empty()) return;
-  std::string error;
-  auto camera = markloop::perception::load_camera_model(path, error);
-  if (!camera) markloop::cli::fail(error);
+  auto camera = markloop::perception::load_camera_model(path);
+  if (!camera) markloop::cli::fail(camera.message());
   options.camera = *camera;
-  if (!markloop::perception::load_detector_config(path, options.detector, error)) markloop::cli::fail(error);
+  auto detector = markloop::perception::load_detector_config(path, options.detector);
+  if (!detector) markloop::cli::fail(detector.message());
+  options.detector = *detector;
 }
 
 // The detector reports nothing under its own threshold, so a gate set lower

@@ -164,90 +164,124 @@ bool sees_road(const CameraModel& model) {
   return false;
 }
 
+// The image's size, in whole pixels.
+struct ImageSize {
+  int width, height;
+};
+
+Result<ImageSize> read_image_size(const cv::FileStorage& fs) {
+  double width = 0, height = 0;
+  if (!read_number(fs["image_width"], width) || !read_number(fs["image_height"], height))
+    return error("image_width and image_height are required");
+  if (width < 16 || height < 16 || width > 8192 || height > 8192 || width != std::floor(width) ||
+      height != std::floor(height))
+    return error("image size " + std::to_string(width) + "x" + std::to_string(height) +
+                 " out of range (16..8192 whole pixels)");
+  return ImageSize{static_cast<int>(width), static_cast<int>(height)};
+}
+
+// A camera calibrated against the road directly (ground_homography).
+Result<CameraModel> read_homography_camera(const cv::FileStorage& fs, ImageSize size) {
+  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> H;
+  if (!read_matrix(fs["ground_homography"], 3, 3, H.data()))
+    return error("ground_homography must be a 3x3 matrix");
+  if (!H.allFinite() || std::abs(H.determinant()) < 1e-15)
+    return error("ground_homography is singular or not finite");
+  CameraModel model = CameraModel::homography(size.width, size.height, H);
+  if (!sees_road(model))
+    return error(
+        "the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of "
+        "its axis, falls inside the image (check ground_homography)");
+  return model;
+}
+
+Status read_distortion(const cv::FileStorage& fs, PinholeIntrinsics& k) {
+  if (fs["distortion_coefficients"].empty()) return {};
+  cv::Mat d;
+  if (read_small_matrix(fs["distortion_coefficients"], 5, d)) d.convertTo(d, CV_64F);
+  if (d.total() != 4 && d.total() != 5)
+    return error("distortion_coefficients must hold 4 or 5 values (k1 k2 p1 p2 [k3])");
+  for (std::size_t i = 0; i < d.total(); ++i) k.distortion[i] = d.at<double>(static_cast<int>(i));
+  for (const double v : k.distortion)
+    if (!std::isfinite(v) || std::abs(v) > kMaxDistortion)
+      return error("distortion_coefficients must be finite numbers within +-" +
+                   std::to_string(int(kMaxDistortion)));
+  return {};
+}
+
+Result<PinholeIntrinsics> read_intrinsics(const cv::FileStorage& fs, ImageSize size) {
+  Eigen::Matrix<double, 3, 3, Eigen::RowMajor> K;
+  if (!read_matrix(fs["camera_matrix"], 3, 3, K.data()))
+    return error("camera_matrix (3x3) or ground_homography is required");
+  PinholeIntrinsics k;
+  k.fx = K(0, 0);
+  k.fy = K(1, 1);
+  k.cx = K(0, 2);
+  k.cy = K(1, 2);
+  if (!(k.fx > 0 && k.fy > 0) || !K.allFinite() || k.fx > kMaxFocalPixels || k.fy > kMaxFocalPixels)
+    return error("camera_matrix needs focal lengths of 0 to " + std::to_string(int(kMaxFocalPixels)) +
+                 " pixels");
+  if (k.cx < 0 || k.cy < 0 || k.cx >= size.width || k.cy >= size.height)
+    return error("camera_matrix's principal point lies outside the image");
+  if (Status distortion = read_distortion(fs, k); !distortion) return distortion.error();
+  return k;
+}
+
+Result<CameraMounting> read_mounting(const cv::FileStorage& fs) {
+  CameraMounting m;
+  double pitch = 0, roll = 0, yaw = 0;
+  if (!read_number(fs["mount_height"], m.height_m) || !(m.height_m > 0.1 && m.height_m < 10))
+    return error("mount_height (metres above the road, 0.1..10) is required");
+  if (!read_number(fs["mount_pitch_deg"], pitch) || !(pitch > 0.5 && pitch < 89.5))
+    return error("mount_pitch_deg (degrees below level, 0.5..89.5) is required");
+  const auto optional_number = [&](const char* key, double& out) {
+    return fs[key].empty() || read_number(fs[key], out);
+  };
+  if (!optional_number("mount_roll_deg", roll) || !optional_number("mount_yaw_deg", yaw) ||
+      !optional_number("mount_x", m.x_m) || !optional_number("mount_y", m.y_m))
+    return error("mount_roll_deg, mount_yaw_deg, mount_x and mount_y must be numbers");
+  m.pitch_rad = pitch * kDegree;
+  m.roll_rad = roll * kDegree;
+  m.yaw_rad = yaw * kDegree;
+  return m;
+}
+
+// A pinhole camera: camera_matrix, distortion and the mounting.
+Result<CameraModel> read_pinhole_camera(const cv::FileStorage& fs, ImageSize size) {
+  Result<PinholeIntrinsics> k = read_intrinsics(fs, size);
+  if (!k) return k.error();
+  Result<CameraMounting> m = read_mounting(fs);
+  if (!m) return m.error();
+  CameraModel model = CameraModel::pinhole(size.width, size.height, *k, *m);
+  if (!sees_road(model))
+    return error(
+        "the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of its "
+        "axis, falls inside the image (check camera_matrix and the mount angles)");
+  return model;
+}
+
+// The camera a calibration file describes; errors say what is wrong, not where.
+Result<CameraModel> read_camera(const cv::FileStorage& fs) {
+  Result<ImageSize> size = read_image_size(fs);
+  if (!size) return size.error();
+  if (!fs["ground_homography"].empty()) return read_homography_camera(fs, *size);
+  return read_pinhole_camera(fs, *size);
+}
+
 }  // namespace
 
-std::optional<CameraModel> load_camera_model(const std::string& path, std::string& error) {
+Result<CameraModel> load_camera_model(const std::string& path) {
   // FileStorage reports syntax errors by throwing cv::Exception; they stop
   // here, at start-up, never in the loop.
   try {
-    std::optional<cv::FileStorage> storage = open_storage_file(path, error);
-    if (!storage) return std::nullopt;
-    cv::FileStorage& fs = *storage;
-    const auto fail = [&](const std::string& what) {
-      error = path + ": " + what;
-      return std::nullopt;
-    };
-    double width = 0, height = 0;
-    if (!read_number(fs["image_width"], width) || !read_number(fs["image_height"], height))
-      return fail("image_width and image_height are required");
-    if (width < 16 || height < 16 || width > 8192 || height > 8192 || width != std::floor(width) ||
-        height != std::floor(height))
-      return fail("image size " + std::to_string(width) + "x" + std::to_string(height) +
-                  " out of range (16..8192 whole pixels)");
-    const int w = static_cast<int>(width), h = static_cast<int>(height);
-
-    if (!fs["ground_homography"].empty()) {
-      Eigen::Matrix<double, 3, 3, Eigen::RowMajor> H;
-      if (!read_matrix(fs["ground_homography"], 3, 3, H.data()))
-        return fail("ground_homography must be a 3x3 matrix");
-      if (!H.allFinite() || std::abs(H.determinant()) < 1e-15)
-        return fail("ground_homography is singular or not finite");
-      CameraModel model = CameraModel::homography(w, h, H);
-      if (!sees_road(model))
-        return fail(
-            "the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of "
-            "its axis, falls inside the image (check ground_homography)");
-      return model;
-    }
-
-    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> K;
-    if (!read_matrix(fs["camera_matrix"], 3, 3, K.data()))
-      return fail("camera_matrix (3x3) or ground_homography is required");
-    PinholeIntrinsics k;
-    k.fx = K(0, 0);
-    k.fy = K(1, 1);
-    k.cx = K(0, 2);
-    k.cy = K(1, 2);
-    if (!(k.fx > 0 && k.fy > 0) || !K.allFinite() || k.fx > kMaxFocalPixels || k.fy > kMaxFocalPixels)
-      return fail("camera_matrix needs focal lengths of 0 to " + std::to_string(int(kMaxFocalPixels)) +
-                  " pixels");
-    if (k.cx < 0 || k.cy < 0 || k.cx >= w || k.cy >= h)
-      return fail("camera_matrix's principal point lies outside the image");
-    if (!fs["distortion_coefficients"].empty()) {
-      cv::Mat d;
-      if (read_small_matrix(fs["distortion_coefficients"], 5, d)) d.convertTo(d, CV_64F);
-      if (d.total() != 4 && d.total() != 5)
-        return fail("distortion_coefficients must hold 4 or 5 values (k1 k2 p1 p2 [k3])");
-      for (std::size_t i = 0; i < d.total(); ++i) k.distortion[i] = d.at<double>(static_cast<int>(i));
-      for (const double v : k.distortion)
-        if (!std::isfinite(v) || std::abs(v) > kMaxDistortion)
-          return fail("distortion_coefficients must be finite numbers within +-" +
-                      std::to_string(int(kMaxDistortion)));
-    }
-    CameraMounting m;
-    double pitch = 0, roll = 0, yaw = 0;
-    if (!read_number(fs["mount_height"], m.height_m) || !(m.height_m > 0.1 && m.height_m < 10))
-      return fail("mount_height (metres above the road, 0.1..10) is required");
-    if (!read_number(fs["mount_pitch_deg"], pitch) || !(pitch > 0.5 && pitch < 89.5))
-      return fail("mount_pitch_deg (degrees below level, 0.5..89.5) is required");
-    const auto optional_number = [&](const char* key, double& out) {
-      return fs[key].empty() || read_number(fs[key], out);
-    };
-    if (!optional_number("mount_roll_deg", roll) || !optional_number("mount_yaw_deg", yaw) ||
-        !optional_number("mount_x", m.x_m) || !optional_number("mount_y", m.y_m))
-      return fail("mount_roll_deg, mount_yaw_deg, mount_x and mount_y must be numbers");
-    m.pitch_rad = pitch * kDegree;
-    m.roll_rad = roll * kDegree;
-    m.yaw_rad = yaw * kDegree;
-    CameraModel model = CameraModel::pinhole(w, h, k, m);
-    if (!sees_road(model))
-      return fail(
-          "the camera sees no road: no ground point 5 to 20 m ahead of the car, within 3 m of its "
-          "axis, falls inside the image (check camera_matrix and the mount angles)");
+    std::string open_error;
+    std::optional<cv::FileStorage> storage = open_storage_file(path, open_error);
+    if (!storage) return error(open_error);
+    Result<CameraModel> model = read_camera(*storage);
+    if (!model) return with_context(path, model.error());
     return model;
   } catch (const std::exception& e) {
-    error = path + ": " + e.what();
-    return std::nullopt;
+    return error(path + ": " + e.what());
   }
 }
 

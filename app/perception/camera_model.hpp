@@ -19,6 +19,8 @@
 
 #include <Eigen/Core>
 
+#include "app/common/result.hpp"
+
 namespace markloop::perception {
 
 struct PinholeIntrinsics {
@@ -67,9 +69,8 @@ class CameraModel {
   Eigen::Matrix3d ground_to_image_ = Eigen::Matrix3d::Identity();
 };
 
-// Reads a calibration file. On failure returns nullopt and sets `error` to
-// "PATH: what is wrong".
-std::optional<CameraModel> load_camera_model(const std::string& path, std::string& error);
+// Reads a calibration file. An error says "PATH: what is wrong".
+Result<CameraModel> load_camera_model(const std::string& path);
 // Writes a calibration file that load_camera_model() reads back.
 bool save_camera_model(const CameraModel& model, const std::string& path, std::string& error);
 

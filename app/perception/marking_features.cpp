@@ -46,47 +46,48 @@ void normalise(float* v, int n, float energy_floor) {
   for (int i = 0; i < n; ++i) v[i] *= scale;
 }
 
-}  // namespace
-
-void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& box, PatchScratch& scratch,
-                      Features& out) {
+// The patch resampled from the box (and its margin): grey and paint (0..1).
+void resample_patch(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& box, PatchScratch& scratch) {
   const float width = static_cast<float>(box.col1 - box.col0 + 1);
   const float height = static_cast<float>(box.row1 - box.row0 + 1);
   const float left = static_cast<float>(box.col0) - kMargin * width;
   const float top = static_cast<float>(box.row0) - kMargin * height;
   const float step_x = width * (1.0f + 2.0f * kMargin) / kPatchCols;
   const float step_y = height * (1.0f + 2.0f * kMargin) / kPatchRows;
-
-  float mean = 0.0f;
   for (int r = 0; r < kPatchRows; ++r) {
     for (int c = 0; c < kPatchCols; ++c) {
       const float x = left + (static_cast<float>(c) + 0.5f) * step_x - 0.5f;
       const float y = top + (static_cast<float>(r) + 0.5f) * step_y - 0.5f;
-      const float g = sample(bev, x, y);
-      scratch.grey[r * kPatchCols + c] = g;
+      scratch.grey[r * kPatchCols + c] = sample(bev, x, y);
       scratch.paint[r * kPatchCols + c] = sample(mask, x, y) * (1.0f / 255.0f);
-      mean += g;
     }
   }
+}
+
+// The grey to zero mean and unit deviation, so that light does not matter.
+void standardise_grey(PatchScratch& scratch) {
+  float mean = 0.0f;
+  for (float g : scratch.grey) mean += g;
   mean /= static_cast<float>(kPatchCols * kPatchRows);
   float var = 0.0f;
   for (float g : scratch.grey) var += (g - mean) * (g - mean);
   const float inv_std = 1.0f / std::sqrt(var / static_cast<float>(kPatchCols * kPatchRows) + 1.0f);
   for (float& g : scratch.grey) g = (g - mean) * inv_std;
+}
 
-  // HOG: signed gradient orientation, magnitude split linearly between the
-  // two nearest bins, one histogram per cell, L2-Hys over the whole patch.
-  float* hog = out.data();
+constexpr int kCellCols = kPatchCols / kHogCell;
+constexpr int kCellRows = kPatchRows / kHogCell;
+
+// HOG: signed gradient orientation, magnitude split linearly between the
+// two nearest bins, one histogram per cell.
+void cell_histograms(const PatchScratch& scratch, float* hog) {
   std::fill(hog, hog + kHogFeatures, 0.0f);
-  constexpr int kCellCols = kPatchCols / kHogCell;
-  constexpr int kCellRows = kPatchRows / kHogCell;
   constexpr float kBinWidth = 2.0f * std::numbers::pi_v<float> / kHogBins;
+  const auto at = [&](int rr, int cc) {
+    return scratch.grey[std::clamp(rr, 0, kPatchRows - 1) * kPatchCols + std::clamp(cc, 0, kPatchCols - 1)];
+  };
   for (int r = 0; r < kPatchRows; ++r) {
     for (int c = 0; c < kPatchCols; ++c) {
-      const auto at = [&](int rr, int cc) {
-        return scratch
-            .grey[std::clamp(rr, 0, kPatchRows - 1) * kPatchCols + std::clamp(cc, 0, kPatchCols - 1)];
-      };
       const float gx = at(r, c + 1) - at(r, c - 1);
       const float gy = at(r + 1, c) - at(r - 1, c);
       const float magnitude = std::sqrt(gx * gx + gy * gy);
@@ -102,10 +103,13 @@ void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& b
       h[(b0 + 1) % kHogBins] += magnitude * frac;
     }
   }
-  // Each block of 2 x 2 cells on its own, as in Dalal and Triggs' HOG: a
-  // shadow across part of a marking weakens the edges there and only
-  // there. The floor, a fraction of a block's mean energy, keeps blocks of
-  // bare road near zero.
+}
+
+// Each block of 2 x 2 cells on its own, as in Dalal and Triggs' HOG: a
+// shadow across part of a marking weakens the edges there and only there.
+// The floor, a fraction of a block's mean energy, keeps blocks of bare road
+// near zero.
+void normalise_blocks(float* hog) {
   float energy = 0.0f;
   for (int i = 0; i < kHogFeatures; ++i) energy += hog[i] * hog[i];
   constexpr int kBlockFeatures = kHogBlockCells * kHogBlockCells * kHogBins;
@@ -126,25 +130,43 @@ void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& b
       for (int k = 0; k < kHogBlockCells * kHogBlockCells; ++k)
         std::copy_n(block.begin() + k * kHogBins, kHogBins, cell(k));
     }
+}
 
-  float* occupancy = hog + kHogFeatures;
+// Paint on a coarse grid of the patch.
+void occupancy_grid(const PatchScratch& scratch, float* occupancy) {
   constexpr int kOccCols = kPatchCols / kOccupancyCell;
   std::fill(occupancy, occupancy + kOccupancyFeatures, 0.0f);
   for (int r = 0; r < kPatchRows; ++r)
     for (int c = 0; c < kPatchCols; ++c)
       occupancy[(r / kOccupancyCell) * kOccCols + c / kOccupancyCell] +=
           scratch.paint[r * kPatchCols + c] * (1.0f / (kOccupancyCell * kOccupancyCell));
+}
 
+// The box's size on the ground, its paint's share and its parts.
+void shape_of(const PatchBox& box, const PatchScratch& scratch, float* shape) {
   float fill = 0.0f;
   for (float p : scratch.paint) fill += p;
   fill /= static_cast<float>(kPatchCols * kPatchRows);
-  float* shape = occupancy + kOccupancyFeatures;
   shape[0] = box.length_m;
   shape[1] = box.width_m;
   shape[2] = std::log(std::max(box.length_m, 0.05f) / std::max(box.width_m, 0.05f));
   shape[3] = fill;
   shape[4] = static_cast<float>(std::min(box.parts, 8));
   shape[5] = std::log(std::max(box.length_m * box.width_m, 0.01f));
+}
+
+}  // namespace
+
+void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& box, PatchScratch& scratch,
+                      Features& out) {
+  resample_patch(bev, mask, box, scratch);
+  standardise_grey(scratch);
+  float* hog = out.data();
+  cell_histograms(scratch, hog);
+  normalise_blocks(hog);
+  float* occupancy = hog + kHogFeatures;
+  occupancy_grid(scratch, occupancy);
+  shape_of(box, scratch, occupancy + kOccupancyFeatures);
 }
 
 }  // namespace markloop::perception

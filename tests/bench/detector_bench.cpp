@@ -244,14 +244,15 @@ void print_views(const DetectorConfig& config, const MarkingDetector& detector, 
 int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-detector-bench";
   const Options o = parse(argc, argv);
-  std::string error;
   CameraModel camera = default_camera_model();
   DetectorConfig config;
   if (!o.camera_path.empty()) {
-    const auto loaded = load_camera_model(o.camera_path, error);
-    if (!loaded) markloop::cli::fail(error);
+    const auto loaded = load_camera_model(o.camera_path);
+    if (!loaded) markloop::cli::fail(loaded.message());
     camera = *loaded;
-    if (!load_detector_config(o.camera_path, config, error)) markloop::cli::fail(error);
+    const auto detector_config = load_detector_config(o.camera_path);
+    if (!detector_config) markloop::cli::fail(detector_config.message());
+    config = *detector_config;
   }
   config.horizon_from_lanes = config.horizon_from_lanes || o.horizon_from_lanes;
   MarkingDetector detector(camera, config);

@@ -17,18 +17,17 @@ using namespace markloop::perception;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const markloop::fuzz::InputFile file(data, size, ".yaml");
-  std::string error;
-  const std::optional<CameraModel> camera = load_camera_model(file.path(), error);
+  const markloop::Result<CameraModel> camera = load_camera_model(file.path());
   if (!camera) {
-    if (error.rfind(file.path(), 0) != 0) std::abort();
+    if (camera.message().rfind(file.path(), 0) != 0) std::abort();
     return 0;
   }
-  DetectorConfig config;
-  if (!load_detector_config(file.path(), config, error)) {
-    if (error.rfind(file.path(), 0) != 0) std::abort();
+  const markloop::Result<DetectorConfig> config = load_detector_config(file.path());
+  if (!config) {
+    if (config.message().rfind(file.path(), 0) != 0) std::abort();
     return 0;
   }
-  MarkingDetector detector(*camera, config);
+  MarkingDetector detector(*camera, *config);
   // A frame of the camera's size: grey road with a bright bar across it.
   cv::Mat frame(camera->height(), camera->width(), CV_8UC1, cv::Scalar(90));
   frame.rowRange(camera->height() * 3 / 4, camera->height() * 3 / 4 + 8).setTo(230);

@@ -1024,8 +1024,7 @@ TEST_CASE("classifier: the probabilities are the mean of the members'") {
 }
 
 TEST_CASE("Honda calibration: ground scale and detector region from honda.yaml") {
-  std::string error;
-  const auto camera = load_camera_model(kCameras + "honda.yaml", error);
+  const auto camera = load_camera_model(kCameras + "honda.yaml");
   REQUIRE(camera);
   CHECK(camera->width() == 800);
   CHECK(camera->height() == 600);
@@ -1039,8 +1038,9 @@ TEST_CASE("Honda calibration: ground scale and detector region from honda.yaml")
   CHECK(g.x() == Catch::Approx(6.1).margin(0.1));
   CHECK_FALSE(camera->image_to_ground({400.0, 250.0}, g));  // sky
 
-  DetectorConfig config;
-  REQUIRE(load_detector_config(kCameras + "honda.yaml", config, error));
+  const auto loaded = load_detector_config(kCameras + "honda.yaml");
+  REQUIRE(loaded);
+  const DetectorConfig& config = *loaded;
   CHECK(config.region.x_far_m == Catch::Approx(16.0));
   // The bonnet's outline: highest in the middle of the image.
   REQUIRE(config.hidden_below.count == 10);
@@ -1053,8 +1053,9 @@ TEST_CASE("Honda calibration: ground scale and detector region from honda.yaml")
   CHECK(config.hidden_below_follows_horizon);
   // The sim camera's file has no detector keys: defaults stay (it is
   // calibrated exactly: no horizon measured).
-  DetectorConfig defaults;
-  REQUIRE(load_detector_config(kCameras + "sim.yaml", defaults, error));
+  const auto sim = load_detector_config(kCameras + "sim.yaml");
+  REQUIRE(sim);
+  const DetectorConfig& defaults = *sim;
   CHECK(defaults.region.x_far_m == Catch::Approx(DetectorConfig{}.region.x_far_m));
   CHECK_FALSE(defaults.horizon_from_lanes);
 }
@@ -1069,7 +1070,10 @@ TEST_CASE("detector config: bad values are reported with the file") {
       cv::FileStorage fs(path, cv::FileStorage::WRITE);
       ((fs << keys_and_values), ...);
     }
-    return load_detector_config(path, config, error);
+    markloop::Result<DetectorConfig> loaded = load_detector_config(path, config);
+    error = loaded ? std::string() : loaded.message();
+    if (loaded) config = *loaded;
+    return loaded.ok();
   };
   CHECK_FALSE(load("detector_x_near_m", 10.0, "detector_x_far_m", 5.0));
   CHECK(error.find(path) == 0);
@@ -1103,5 +1107,7 @@ TEST_CASE("detector config: bad values are reported with the file") {
   REQUIRE(load("detector_cnn_share", 0.7, "detector_skip_networks_at", 2.0));
   CHECK(config.cnn_share == Catch::Approx(0.7));
   CHECK(config.skip_networks_at == Catch::Approx(2.0));
-  CHECK_FALSE(load_detector_config("/nonexistent/camera.yaml", config, error));
+  const auto missing = load_detector_config("/nonexistent/camera.yaml", config);
+  REQUIRE_FALSE(missing);
+  CHECK(missing.message().find("/nonexistent/camera.yaml") == 0);
 }

@@ -160,7 +160,7 @@ TEST_CASE("a drive's files have the agreed formats") {
   CHECK(dbc::decode(record.frame.payload(), odo) == dbc::DecodeError::BadCrc);
 
   // camera.yaml: the calibration used.
-  const auto loaded = perception::load_camera_model((dir / "camera.yaml").string(), error);
+  const auto loaded = perception::load_camera_model((dir / "camera.yaml").string());
   REQUIRE(loaded);
   CHECK(loaded->width() == 1280);
   CHECK_THAT(loaded->mounting().height_m, WithinAbs(1.5, 1e-9));

@@ -223,11 +223,11 @@ struct Setup {
 Setup load_setup(const Options& o) {
   using namespace markloop::perception;
   check_calibration_file(o.camera_path);
-  std::string error;
-  const auto camera = load_camera_model(o.camera_path, error);
-  if (!camera) markloop::cli::fail(error);
-  DetectorConfig config;
-  if (!load_detector_config(o.camera_path, config, error)) markloop::cli::fail(error);
+  const auto camera = load_camera_model(o.camera_path);
+  if (!camera) markloop::cli::fail(camera.message());
+  auto loaded = load_detector_config(o.camera_path, DetectorConfig{});
+  if (!loaded) markloop::cli::fail(loaded.message());
+  DetectorConfig config = *loaded;
   if (o.min_score >= 0.0) config.min_score = static_cast<float>(o.min_score);
   if (o.whole_only) config.report_partial_in_stills = false;
   return {*camera, config};

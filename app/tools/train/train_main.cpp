@@ -437,10 +437,11 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   if (drive ? !train::load_drive_annotations(dir, kDriveStep, set.images, error)
             : !train::load_annotations(dir, set.images, error))
     fail(error);
-  const auto camera = load_camera_model(camera_path, error);
-  if (!camera) fail(error);
-  DetectorConfig config;
-  if (!load_detector_config(camera_path, config, error)) fail(error);
+  const auto camera = load_camera_model(camera_path);
+  if (!camera) fail(camera.message());
+  const auto detector_config = load_detector_config(camera_path);
+  if (!detector_config) fail(detector_config.message());
+  const DetectorConfig& config = *detector_config;
   MarkingDetector detector(*camera, config);
   Augmenter augmenter(detector);
   ImageReader reader(dir, *camera, drive);
