@@ -149,32 +149,34 @@ void MapStore::set_target(std::string target) {
   temporary_template_ = target_ + ".tmp-XXXXXX";
 }
 
-std::string MapStore::acquire() {
+Status MapStore::acquire() {
   if (lock_) return {};
   struct stat info {};
   if (::lstat(path_.c_str(), &info) == 0 && S_ISLNK(info.st_mode)) {
     char* resolved = ::realpath(path_.c_str(), nullptr);
     if (resolved == nullptr)
-      return "a symbolic link whose target cannot be resolved (" + describe(platform::last_error()) + ")";
+      return error("a symbolic link whose target cannot be resolved (" + describe(platform::last_error()) +
+                   ")");
     set_target(resolved);
     std::free(resolved);
   }
   if (::stat(target_.c_str(), &info) == 0) {
     if (!S_ISREG(info.st_mode))
-      return std::string("is ") + file_type_name(info.st_mode) + ", not a map file: refusing to use it";
+      return error(std::string("is ") + file_type_name(info.st_mode) +
+                   ", not a map file: refusing to use it");
   } else if (errno != ENOENT) {
-    return "cannot stat: " + describe(platform::last_error());
+    return error("cannot stat: " + describe(platform::last_error()));
   }
-  if (temporary_template_.size() >= temporary_path_.size()) return "path too long";
+  if (temporary_template_.size() >= temporary_path_.size()) return error("path too long");
   const std::string lock_path = target_ + ".lock";
   int fd = -1;
   if (auto ec = platform::sys_open_mode(lock_path.c_str(), O_RDWR | O_CREAT | O_NOFOLLOW, 0644, fd))
-    return "cannot create the lock file " + lock_path + ": " + describe(ec);
+    return error("cannot create the lock file " + lock_path + ": " + describe(ec));
   platform::UniqueFd lock(fd);
   if (auto ec = platform::try_lock_exclusive(fd)) {
     if (platform::is_would_block(ec))
-      return "in use by another markloop (" + lock_path + " is locked): one process per map";
-    return "cannot lock " + lock_path + ": " + describe(ec);
+      return error("in use by another markloop (" + lock_path + " is locked): one process per map");
+    return error("cannot lock " + lock_path + ": " + describe(ec));
   }
   lock_ = std::move(lock);
   return {};
@@ -269,7 +271,7 @@ MapLoadResult MapStore::load(SequenceDatabase& database, const MatchConfig& matc
     result.message = "no map file configured";
     return result;
   }
-  if (std::string problem = acquire(); !problem.empty()) return unusable(problem);
+  if (Status acquired = acquire(); !acquired) return unusable(acquired.message());
   int fd = -1;
   // Non-blocking: a FIFO put in the map's place after acquire() must not
   // hang the open; fstat() below refuses it.
@@ -284,109 +286,174 @@ MapLoadResult MapStore::load(SequenceDatabase& database, const MatchConfig& matc
   return read_file(fd, database, match);
 }
 
+MapLoadResult MapStore::refuse(const MapFault& fault) {
+  return fault.outcome == MapLoadOutcome::kRejected ? reject(fault.what) : unusable(fault.what);
+}
+
 MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const MatchConfig& match) {
-  MapLoadResult result;
   struct stat info {};
   if (::fstat(fd, &info) != 0) return unusable("cannot stat: " + describe(platform::last_error()));
   if (!S_ISREG(info.st_mode))
     return unusable(std::string("is ") + file_type_name(info.st_mode) +
                     ", not a map file: refusing to use it");
-  const auto file_bytes = static_cast<std::uint64_t>(info.st_size);
-  std::array<std::uint8_t, kMapHeaderBytes> header{};
+  std::array<std::uint8_t, kMapHeaderBytes> bytes{};
   std::size_t got = 0;
-  if (auto ec = platform::read_full(fd, header.data(), header.size(), got))
+  if (auto ec = platform::read_full(fd, bytes.data(), bytes.size(), got))
     return reject("read error: " + describe(ec));
+  MapHeader header;
+  if (std::optional<MapFault> fault =
+          check_header(std::span<const std::uint8_t>(bytes.data(), got),
+                       static_cast<std::uint64_t>(info.st_size), database.stats(), database.k(), header))
+    return refuse(*fault);
+  const Result<PayloadExtent> extent = verify_payload(fd, header);
+  if (!extent) return reject(extent.message());
+  const Result<std::size_t> sequences = fill_database(fd, header, *extent, match, database);
+  if (!sequences) return reject(sequences.message());
+
+  MapLoadResult result;
+  result.outcome = MapLoadOutcome::kLoaded;
+  result.landmarks = database.stats().landmarks;
+  result.sequences = *sequences;
+  result.message = path_ + ": loaded " + std::to_string(result.landmarks) + " landmarks and " +
+                   std::to_string(result.sequences) + " sequences";
+  return result;
+}
+
+std::optional<MapStore::MapFault> MapStore::check_header(std::span<const std::uint8_t> bytes,
+                                                         std::uint64_t file_bytes,
+                                                         const DatabaseStats& capacity, unsigned database_k,
+                                                         MapHeader& header) {
+  const auto damaged = [](std::string what) { return MapFault{MapLoadOutcome::kRejected, std::move(what)}; };
+  const auto foreign = [](std::string what) { return MapFault{MapLoadOutcome::kUnusable, std::move(what)}; };
   // Another program's file named by mistake is left alone; a file too short
   // to say what it is counts as damaged.
-  if (got < 8) return reject("not a markloop map (too short)");
-  if (!std::equal(kMagic.begin(), kMagic.end(), header.begin()))
-    return unusable("not a markloop map (wrong magic); the file is left as it is: check --map (map.file)");
-  if (got < kMapHeaderBytes) return reject("truncated header (" + std::to_string(got) + " bytes)");
-  if (get32(&header[60]) != crc32(std::span<const std::uint8_t>(header.data(), 60)))
-    return reject("header checksum mismatch");
+  if (bytes.size() < 8) return damaged("not a markloop map (too short)");
+  if (!std::equal(kMagic.begin(), kMagic.end(), bytes.begin()))
+    return foreign("not a markloop map (wrong magic); the file is left as it is: check --map (map.file)");
+  if (bytes.size() < kMapHeaderBytes)
+    return damaged("truncated header (" + std::to_string(bytes.size()) + " bytes)");
+  if (get32(&bytes[60]) != crc32(bytes.first(60))) return damaged("header checksum mismatch");
   // A sound map of another version or k is someone's data, not damage.
-  const std::uint32_t version = get32(&header[8]);
+  const std::uint32_t version = get32(&bytes[8]);
   if (version != kMapVersion)
-    return unusable("map version " + std::to_string(version) + ", this markloop reads version " +
-                    std::to_string(kMapVersion) + "; the map is left as it is");
-  const std::uint32_t k = get32(&header[16]);
-  if (get32(&header[12]) != kMapHeaderBytes || get32(&header[20]) != kMapLandmarkBytes)
-    return reject("unexpected header or record size");
-  if (k != database.k())
-    return unusable("map made with k = " + std::to_string(k) +
-                    ", this ECU uses k = " + std::to_string(database.k()) +
-                    "; the map is left as it is (set engine.k to match, or "
-                    "use another map file)");
-  const std::uint64_t landmark_count = get64(&header[24]);
-  const std::uint64_t sequence_count = get64(&header[32]);
-  const std::uint64_t payload_bytes = get64(&header[40]);
-  if (landmark_count > (std::uint64_t{1} << 32) || sequence_count > (std::uint64_t{1} << 32) ||
-      payload_bytes != landmark_count * kMapLandmarkBytes + sequence_count * 4 * k)
-    return reject("inconsistent counts in header");
-  const DatabaseStats capacity = database.stats();
-  if (landmark_count > capacity.landmark_capacity || sequence_count > capacity.sequence_capacity)
-    return unusable("holds " + std::to_string(landmark_count) + " landmarks and " +
-                    std::to_string(sequence_count) + " sequences; this database holds " +
-                    std::to_string(capacity.landmark_capacity) + " landmarks and " +
-                    std::to_string(capacity.sequence_capacity) +
-                    " sequences (database.landmark_capacity, database.sequence_capacity): it would "
-                    "lose places at the next save, so the map is left as it is; raise the capacities");
+    return foreign("map version " + std::to_string(version) + ", this markloop reads version " +
+                   std::to_string(kMapVersion) + "; the map is left as it is");
+  header.k = get32(&bytes[16]);
+  if (get32(&bytes[12]) != kMapHeaderBytes || get32(&bytes[20]) != kMapLandmarkBytes)
+    return damaged("unexpected header or record size");
+  if (header.k != database_k)
+    return foreign("map made with k = " + std::to_string(header.k) +
+                   ", this ECU uses k = " + std::to_string(database_k) +
+                   "; the map is left as it is (set engine.k to match, or "
+                   "use another map file)");
+  header.landmarks = get64(&bytes[24]);
+  header.sequences = get64(&bytes[32]);
+  const std::uint64_t payload_bytes = get64(&bytes[40]);
+  header.payload_crc = get32(&bytes[48]);
+  if (header.landmarks > (std::uint64_t{1} << 32) || header.sequences > (std::uint64_t{1} << 32) ||
+      payload_bytes != header.landmarks * kMapLandmarkBytes + header.sequences * 4 * header.k)
+    return damaged("inconsistent counts in header");
+  if (header.landmarks > capacity.landmark_capacity || header.sequences > capacity.sequence_capacity)
+    return foreign("holds " + std::to_string(header.landmarks) + " landmarks and " +
+                   std::to_string(header.sequences) + " sequences; this database holds " +
+                   std::to_string(capacity.landmark_capacity) + " landmarks and " +
+                   std::to_string(capacity.sequence_capacity) +
+                   " sequences (database.landmark_capacity, database.sequence_capacity): it would "
+                   "lose places at the next save, so the map is left as it is; raise the capacities");
   if (file_bytes != kMapHeaderBytes + payload_bytes)
-    return reject("size " + std::to_string(file_bytes) + " bytes, header says " +
-                  std::to_string(kMapHeaderBytes + payload_bytes) +
-                  (file_bytes < kMapHeaderBytes + payload_bytes ? " (truncated)" : ""));
+    return damaged("size " + std::to_string(file_bytes) + " bytes, header says " +
+                   std::to_string(kMapHeaderBytes + payload_bytes) +
+                   (file_bytes < kMapHeaderBytes + payload_bytes ? " (truncated)" : ""));
+  return std::nullopt;
+}
 
-  // Pass 1: checksum and every value, before anything enters the database.
-  const std::size_t landmark_chunk = buffer_.size() / kMapLandmarkBytes * kMapLandmarkBytes;
-  const std::size_t sequence_bytes = 4 * std::size_t{k};
-  const std::size_t sequence_chunk = buffer_.size() / sequence_bytes * sequence_bytes;
+std::size_t MapStore::landmarks_per_chunk() const {
+  return buffer_.size() / kMapLandmarkBytes;
+}
+
+std::size_t MapStore::sequences_per_chunk(unsigned k) const {
+  return buffer_.size() / (4 * std::size_t{k});
+}
+
+Result<MapStore::PayloadExtent> MapStore::verify_payload(int fd, const MapHeader& header) {
+  // Checksum and every value, before anything enters the database.
   Crc32 crc;
-  double max_station = -1.0e300, max_t = -1.0e300;
+  PayloadExtent extent;
+  if (Status landmarks = verify_landmarks(fd, header, crc, extent); !landmarks) return landmarks.error();
+  if (Status sequences = verify_sequences(fd, header, crc); !sequences) return sequences.error();
+  if (crc.value() != header.payload_crc) return error("payload checksum mismatch");
+  return extent;
+}
+
+Status MapStore::verify_landmarks(int fd, const MapHeader& header, Crc32& crc, PayloadExtent& extent) {
   Landmark landmark;
-  for (std::uint64_t done = 0; done < landmark_count;) {
-    const std::size_t n = static_cast<std::size_t>(
-        std::min<std::uint64_t>(landmark_count - done, landmark_chunk / kMapLandmarkBytes));
+  std::size_t got = 0;
+  for (std::uint64_t done = 0; done < header.landmarks;) {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(header.landmarks - done, landmarks_per_chunk()));
     if (auto ec = platform::read_full(fd, buffer_.data(), n * kMapLandmarkBytes, got))
-      return reject("read error: " + describe(ec));
-    if (got != n * kMapLandmarkBytes) return reject("file shrank while reading");
+      return error("read error: " + describe(ec));
+    if (got != n * kMapLandmarkBytes) return error("file shrank while reading");
     crc.add(std::span<const std::uint8_t>(buffer_.data(), got));
     for (std::size_t i = 0; i < n; ++i) {
       if (!decode_landmark(&buffer_[i * kMapLandmarkBytes], landmark))
-        return reject("landmark " + std::to_string(done + i) + " holds impossible values");
-      max_station = std::max(max_station, landmark.station);
-      max_t = std::max(max_t, landmark.t);
+        return error("landmark " + std::to_string(done + i) + " holds impossible values");
+      extent.max_station = std::max(extent.max_station, landmark.station);
+      extent.max_t = std::max(extent.max_t, landmark.t);
     }
     done += n;
   }
-  for (std::uint64_t done = 0; done < sequence_count;) {
-    const std::size_t n = static_cast<std::size_t>(
-        std::min<std::uint64_t>(sequence_count - done, sequence_chunk / sequence_bytes));
+  return {};
+}
+
+Status MapStore::verify_sequences(int fd, const MapHeader& header, Crc32& crc) {
+  const unsigned k = header.k;
+  const std::size_t sequence_bytes = 4 * std::size_t{k};
+  std::size_t got = 0;
+  for (std::uint64_t done = 0; done < header.sequences;) {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(header.sequences - done, sequences_per_chunk(k)));
     if (auto ec = platform::read_full(fd, buffer_.data(), n * sequence_bytes, got))
-      return reject("read error: " + describe(ec));
-    if (got != n * sequence_bytes) return reject("file shrank while reading");
+      return error("read error: " + describe(ec));
+    if (got != n * sequence_bytes) return error("file shrank while reading");
     crc.add(std::span<const std::uint8_t>(buffer_.data(), got));
     for (std::size_t i = 0; i < n * k; ++i)
-      if (get32(&buffer_[4 * i]) >= landmark_count)
-        return reject("sequence " + std::to_string(done + i / k) + " refers to a missing landmark");
+      if (get32(&buffer_[4 * i]) >= header.landmarks)
+        return error("sequence " + std::to_string(done + i / k) + " refers to a missing landmark");
     done += n;
   }
-  if (crc.value() != get32(&header[48])) return reject("payload checksum mismatch");
+  return {};
+}
 
-  // Pass 2: the file is sound; fill the database. The old drive ends before
-  // the new one starts by more than the match separation in time and distance.
-  const double station_shift = landmark_count > 0 ? max_station + match.min_separation_m + 1.0 : 0.0;
-  const double time_shift = landmark_count > 0 ? max_t + match.min_separation_s + 1.0 : 0.0;
+Result<std::size_t> MapStore::fill_database(int fd, const MapHeader& header, const PayloadExtent& extent,
+                                            const MatchConfig& match, SequenceDatabase& database) {
+  // The file is sound. The old drive ends before the new one starts by more
+  // than the match separation in time and distance.
+  const bool any = header.landmarks > 0;
+  const double station_shift = any ? extent.max_station + match.min_separation_m + 1.0 : 0.0;
+  const double time_shift = any ? extent.max_t + match.min_separation_s + 1.0 : 0.0;
   if (::lseek(fd, static_cast<off_t>(kMapHeaderBytes), SEEK_SET) < 0)
-    return reject("cannot seek: " + describe(platform::last_error()));
+    return error("cannot seek: " + describe(platform::last_error()));
   database.clear();
   const LandmarkId base = database.next_landmark_id();
-  for (std::uint64_t done = 0; done < landmark_count;) {
-    const std::size_t n = static_cast<std::size_t>(
-        std::min<std::uint64_t>(landmark_count - done, landmark_chunk / kMapLandmarkBytes));
-    if (platform::read_full(fd, buffer_.data(), n * kMapLandmarkBytes, got) || got != n * kMapLandmarkBytes) {
-      database.clear();
-      return reject("file changed while loading");
-    }
+  if (Status landmarks = load_landmarks(fd, header, station_shift, time_shift, database); !landmarks) {
+    database.clear();
+    return landmarks.error();
+  }
+  Result<std::size_t> sequences = load_sequences(fd, header, base, database);
+  if (!sequences) database.clear();
+  return sequences;
+}
+
+Status MapStore::load_landmarks(int fd, const MapHeader& header, double station_shift, double time_shift,
+                                SequenceDatabase& database) {
+  Landmark landmark;
+  std::size_t got = 0;
+  for (std::uint64_t done = 0; done < header.landmarks;) {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(header.landmarks - done, landmarks_per_chunk()));
+    if (platform::read_full(fd, buffer_.data(), n * kMapLandmarkBytes, got) || got != n * kMapLandmarkBytes)
+      return error("file changed while loading");
     for (std::size_t i = 0; i < n; ++i) {
       decode_landmark(&buffer_[i * kMapLandmarkBytes], landmark);
       landmark.station -= station_shift;
@@ -395,28 +462,29 @@ MapLoadResult MapStore::read_file(int fd, SequenceDatabase& database, const Matc
     }
     done += n;
   }
+  return {};
+}
+
+Result<std::size_t> MapStore::load_sequences(int fd, const MapHeader& header, LandmarkId base,
+                                             SequenceDatabase& database) {
+  const unsigned k = header.k;
+  const std::size_t sequence_bytes = 4 * std::size_t{k};
   std::array<LandmarkId, kMaxSequenceLength> ids{};
-  std::size_t sequences_loaded = 0;
-  for (std::uint64_t done = 0; done < sequence_count;) {
-    const std::size_t n = static_cast<std::size_t>(
-        std::min<std::uint64_t>(sequence_count - done, sequence_chunk / sequence_bytes));
-    if (platform::read_full(fd, buffer_.data(), n * sequence_bytes, got) || got != n * sequence_bytes) {
-      database.clear();
-      return reject("file changed while loading");
-    }
+  std::size_t loaded = 0;
+  std::size_t got = 0;
+  for (std::uint64_t done = 0; done < header.sequences;) {
+    const std::size_t n =
+        static_cast<std::size_t>(std::min<std::uint64_t>(header.sequences - done, sequences_per_chunk(k)));
+    if (platform::read_full(fd, buffer_.data(), n * sequence_bytes, got) || got != n * sequence_bytes)
+      return error("file changed while loading");
     for (std::size_t s = 0; s < n; ++s) {
       for (unsigned i = 0; i < k; ++i) ids[i] = base + get32(&buffer_[s * sequence_bytes + 4 * i]);
       // False when the database is smaller than the map and evicted a landmark.
-      if (database.add_sequence(std::span<const LandmarkId>(ids.data(), k))) ++sequences_loaded;
+      if (database.add_sequence(std::span<const LandmarkId>(ids.data(), k))) ++loaded;
     }
     done += n;
   }
-  result.outcome = MapLoadOutcome::kLoaded;
-  result.landmarks = database.stats().landmarks;
-  result.sequences = sequences_loaded;
-  result.message = path_ + ": loaded " + std::to_string(result.landmarks) + " landmarks and " +
-                   std::to_string(result.sequences) + " sequences";
-  return result;
+  return loaded;
 }
 
 }  // namespace markloop::ecu

@@ -34,9 +34,13 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
+#include <span>
 #include <string>
 #include <system_error>
 
+#include "app/common/result.hpp"
+#include "app/ecu/crc32.hpp"
 #include "app/engine/config.hpp"
 #include "app/engine/sequence_database.hpp"
 #include "platform/unique_fd.hpp"
@@ -82,13 +86,52 @@ class MapStore {
 
  private:
   std::error_code write_file(const SequenceDatabase& database) noexcept;
-  // Resolves a symbolic link, checks the file type and takes the lock;
-  // empty when the map can be used, else why not.
-  std::string acquire();
+  // Resolves a symbolic link, checks the file type and takes the lock; an
+  // error says why the map cannot be used.
+  Status acquire();
   void set_target(std::string target);
   MapLoadResult reject(const std::string& what);
   MapLoadResult unusable(const std::string& what) const;
+
+  // Loading, step by step: the header's checks, then a pass that verifies
+  // the whole payload, then a pass that fills the database.
   MapLoadResult read_file(int fd, SequenceDatabase& database, const MatchConfig& match);
+  struct MapHeader {
+    std::uint32_t k = 0;
+    std::uint64_t landmarks = 0;
+    std::uint64_t sequences = 0;
+    std::uint32_t payload_crc = 0;
+  };
+  // Why a file cannot be loaded: kRejected (damaged) or kUnusable (someone's
+  // data this ECU must not use or overwrite).
+  struct MapFault {
+    MapLoadOutcome outcome = MapLoadOutcome::kRejected;
+    std::string what;
+  };
+  MapLoadResult refuse(const MapFault& fault);
+  // The header's checks, in the order a broken or foreign file meets them;
+  // `bytes` is what could be read of the header.
+  static std::optional<MapFault> check_header(std::span<const std::uint8_t> bytes, std::uint64_t file_bytes,
+                                              const DatabaseStats& capacity, unsigned database_k,
+                                              MapHeader& header);
+  // The latest station and time among the file's landmarks.
+  struct PayloadExtent {
+    double max_station = -1.0e300;
+    double max_t = -1.0e300;
+  };
+  Result<PayloadExtent> verify_payload(int fd, const MapHeader& header);
+  Status verify_landmarks(int fd, const MapHeader& header, Crc32& crc, PayloadExtent& extent);
+  Status verify_sequences(int fd, const MapHeader& header, Crc32& crc);
+  // Loaded landmarks are shifted to before this session; the number of
+  // sequences loaded. On error the database is left empty.
+  Result<std::size_t> fill_database(int fd, const MapHeader& header, const PayloadExtent& extent,
+                                    const MatchConfig& match, SequenceDatabase& database);
+  Status load_landmarks(int fd, const MapHeader& header, double station_shift, double time_shift,
+                        SequenceDatabase& database);
+  Result<std::size_t> load_sequences(int fd, const MapHeader& header, LandmarkId base,
+                                     SequenceDatabase& database);
+  std::size_t landmarks_per_chunk() const;
+  std::size_t sequences_per_chunk(unsigned k) const;
 
   std::string path_;    // as configured, for messages
   std::string target_;  // the file itself (a link's target)

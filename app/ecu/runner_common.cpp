@@ -168,9 +168,9 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
 
 namespace {
 
-bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode,
-                   std::size_t rss) {
-  if (options.summary_json.empty()) return true;
+// The run's figures: every field of the summary but the engine's.
+void print_run_figures(std::FILE* out, const Ecu& ecu, double wall_seconds, const char* mode,
+                       std::size_t rss) {
   const EcuCounters& c = ecu.counters();
   const auto& detect = ecu.detect_time();
   const auto& engine = ecu.engine_time();
@@ -178,13 +178,6 @@ bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_second
   const auto& latency = ecu.detection_latency();
   const DatabaseStats db = ecu.engine().database().stats();
   const OdometryCounters& odo = ecu.odometry().counters();
-  char* text = nullptr;
-  std::size_t length = 0;
-  std::FILE* out = ::open_memstream(&text, &length);
-  if (out == nullptr) {
-    std::fprintf(stderr, "markloop: %s: out of memory\n", options.summary_json.c_str());
-    return false;
-  }
   std::fprintf(
       out,
       "{\"mode\": \"%s\", \"wall_s\": %.3f, \"frames_processed\": %llu, \"frames_dropped\": %llu,"
@@ -215,8 +208,10 @@ bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_second
       ms(frame.quantile_ns(0.5)), ms(frame.quantile_ns(0.99)), ms(frame.max_ns()),
       (unsigned long long)latency.count(), ms(latency.quantile_ns(0.5)), ms(latency.quantile_ns(0.99)),
       ms(latency.max_ns()), db.landmarks, db.sequences, rss);
-  // Where the engine's candidates went, and its rarer events.
-  const EngineCounters& e = ecu.engine().counters();
+}
+
+// Where the engine's candidates went, and its rarer events; closes the summary.
+void print_engine_counters(std::FILE* out, const EngineCounters& e) {
   const std::pair<const char*, std::uint64_t> engine_counters[] = {
       {"landmarks_released", e.landmarks_released},
       {"passing_frames_forgotten", e.passing_frames_forgotten},
@@ -245,6 +240,20 @@ bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_second
     std::fprintf(out, "%s\"%s\": %llu", i > 0 ? ", " : "", engine_counters[i].first,
                  (unsigned long long)engine_counters[i].second);
   std::fprintf(out, "}}\n");
+}
+
+bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode,
+                   std::size_t rss) {
+  if (options.summary_json.empty()) return true;
+  char* text = nullptr;
+  std::size_t length = 0;
+  std::FILE* out = ::open_memstream(&text, &length);
+  if (out == nullptr) {
+    std::fprintf(stderr, "markloop: %s: out of memory\n", options.summary_json.c_str());
+    return false;
+  }
+  print_run_figures(out, ecu, wall_seconds, mode, rss);
+  print_engine_counters(out, ecu.engine().counters());
   const bool formatted = std::fclose(out) == 0;
   const std::error_code ec =
       formatted ? platform::write_file_replacing(options.summary_json.c_str(), std::string_view(text, length))

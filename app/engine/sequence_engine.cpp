@@ -319,181 +319,257 @@ bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from,
 
 bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShape& shape,
                            bool over_skipped_row, MatchEvent& best) {
-  const unsigned k = config_.chain.k;
-  const MatchConfig& mc = config_.match;
   ++counters_.queries;
-
-  std::array<Eigen::Vector2d, kMaxSequenceLength> query_points;
-  for (unsigned i = 0; i < k; ++i) {
-    best.query[i] = *database_.landmark(query[i]);
-    query_points[i] = {best.query[i].x, best.query[i].y};
-  }
-  const Landmark& query_first = best.query[0];
-
+  const Query q = load_query(query, shape, over_skipped_row, best);
   bool found = false;
   unsigned verified = 0;
   bool limited = false;
-  database_.for_each_match(
-      shape, mc.max_candidates_per_query, limited, [&](std::span<const LandmarkId> candidate) {
-        ++counters_.candidates;
-        const Landmark& candidate_last = *database_.landmark(candidate[k - 1]);
-        if (candidate_last.station > query_first.station - mc.min_separation_m ||
-            candidate_last.t > query_first.t - mc.min_separation_s) {
-          ++counters_.candidates_too_recent;
-          return true;
-        }
-        std::array<Eigen::Vector2d, kMaxSequenceLength> candidate_points;
-        double normalised_error = 0.0;
-        for (unsigned i = 0; i < k; ++i) {
-          const Landmark& landmark = *database_.landmark(candidate[i]);
-          candidate_points[i] = {landmark.x, landmark.y};
-          if (i > 0) {
-            const double d = (candidate_points[i] - candidate_points[i - 1]).norm();
-            const double tolerance = database_.quantiser().tolerance(d, shape.distances[i]);
-            normalised_error += std::abs(d - shape.distances[i]) / tolerance;
-          }
-        }
-        const RigidFit fit = fit_rigid_2d({candidate_points.data(), k}, {query_points.data(), k});
-        if (fit.rms_residual > mc.max_residual_m) {
-          ++counters_.candidates_rejected_residual;
-          return true;
-        }
-        // The loop's two frames, as far apart as its relative pose says.
-        const std::optional<Pose2> relative =
-            relative_car_pose(fit.transform, best.query[k - 1], *database_.landmark(candidate[k - 1]));
-        if (mc.max_frame_distance_m > 0.0 && relative &&
-            std::hypot(relative->x, relative->y) > mc.max_frame_distance_m) {
-          ++counters_.candidates_rejected_frames_apart;
-          return true;
-        }
-        const Landmark& candidate_first = *database_.landmark(candidate[0]);
-        if (mc.confirm_loaded_places && candidate_first.station < 0.0) {
-          // Until the loaded map's alignment is known, only sequences without a
-          // gap may propose it: a skipped row is one more way for a look-alike
-          // place to fit, and a rival hypothesis holds the true one back.
-          if (over_skipped_row && !confirmed_.valid) return true;
-          // A place of a loaded map has no odometry prior: it must agree over
-          // k + 1 rows (this sequence and the one a row back, both verified)...
-          const bool continues =
-              std::find(loaded_pairs_.begin(), loaded_pairs_.end(),
-                        LandmarkPair{query[k - 2], candidate[k - 2]}) != loaded_pairs_.end();
-          if (loaded_pairs_.full()) loaded_pairs_.erase_at(0);
-          (void)loaded_pairs_.push_back({query[k - 1], candidate[k - 1]});
-          if (!continues) {
-            ++counters_.loaded_single_sequences;
-            return true;
-          }
-          // ...and its alignment must agree with how the two sessions' frames
-          // are known (or about to be found) to relate.
-          Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
-          for (unsigned i = 0; i < k; ++i) {
-            query_centre += query_points[i] / k;
-            candidate_centre += candidate_points[i] / k;
-          }
-          const double here = query_first.station;
-          if (confirmed_.valid) {
-            if (!agrees(confirmed_.transform, candidate_centre, query_centre, fit.transform.yaw,
-                        here - confirmed_.station)) {
-              ++counters_.loaded_rejected;
-              return true;
-            }
-            confirmed_ = {true, fit.transform, here};
-          } else {
-            // Confirmed by earlier hypotheses that agree and rest on other
-            // landmarks (at least a row further back along the drive), provided
-            // no rival alignment, one this match disagrees with, is as well
-            // supported: on look-alike blocks a wrong alignment can find a
-            // second match too, but not more than the true one. The matches of
-            // the agreeing hypotheses, held back so far, are sent now.
-            const auto supports = [&](const SessionAlignment& h) {
-              const double driven = here - h.station;
-              return driven >= mc.confirm_min_gap_m && driven <= mc.confirm_within_m &&
-                     agrees(h.transform, candidate_centre, query_centre, fit.transform.yaw, driven);
-            };
-            unsigned support = 0;
-            for (const SessionAlignment& h : hypotheses_) support += supports(h) ? 1 : 0;
-            unsigned rival_support = 0;
-            for (std::size_t g = 0; g < hypotheses_.size() && support > 0; ++g) {
-              const SessionAlignment& rival = hypotheses_[g];
-              if (here - rival.station > mc.confirm_within_m ||
-                  agrees(fit.transform, rival.from, rival.to, rival.transform.yaw, here - rival.station))
-                continue;
-              unsigned its = 1;
-              for (std::size_t h = 0; h < hypotheses_.size(); ++h) {
-                const SessionAlignment& other = hypotheses_[h];
-                const double apart = std::abs(rival.station - other.station);
-                if (h != g && apart <= mc.confirm_within_m &&
-                    agrees(rival.transform, other.from, other.to, other.transform.yaw, apart))
-                  ++its;
-              }
-              rival_support = std::max(rival_support, its);
-            }
-            // This match plus the hypotheses it agrees with, against the rival.
-            const bool confirmed = support > 0 && support + 1 > rival_support;
-            if (support > 0 && !confirmed) ++counters_.loaded_rivalled;
-            if (confirmed)
-              for (std::size_t h = 0; h < hypotheses_.size(); ++h)
-                if (supports(hypotheses_[h])) hold_for_release(held_matches_[h]);
-            if (!confirmed) {
-              if (hypotheses_.full()) {
-                hypotheses_.erase_at(0);
-                held_matches_.erase_at(0);
-              }
-              hypotheses_.push_back({true, fit.transform, here, candidate_centre, query_centre});
-              MatchEvent& held = held_matches_.push_back_slot();
-              held.k = k;
-              for (unsigned i = 0; i < k; ++i) {
-                held.query[i] = best.query[i];
-                held.match[i] = *database_.landmark(candidate[i]);
-              }
-              held.alignment = fit.transform;
-              held.residual_m = fit.rms_residual;
-              held.score = std::clamp(1.0 - normalised_error / (k - 1), 0.0, 1.0);
-              held.verified_candidates = 1;
-              held.aligned_pairs = k;
-              set_relative_pose(held);
-              ++counters_.loaded_hypotheses;
-              return true;
-            }
-            confirmed_ = {true, fit.transform, here};
-            hypotheses_.clear();
-            held_matches_.clear();
-          }
-        }
-        if (mc.max_drift_rel > 0.0 && candidate_first.station >= 0.0) {
-          // Same session: the places' world positions differ by the odometry's drift only.
-          Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
-          for (unsigned i = 0; i < k; ++i) {
-            query_centre += query_points[i];
-            candidate_centre += candidate_points[i];
-          }
-          const double driven = query_first.station - candidate_last.station;
-          const double apart = (query_centre - candidate_centre).norm() / k;
-          const double turned = std::abs(fit.transform.yaw) * 180.0 / 3.14159265358979323846;
-          if (apart > mc.max_drift_abs_m + mc.max_drift_rel * driven ||
-              turned > mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven) {
-            ++counters_.candidates_rejected_drift;
-            return true;
-          }
-        }
-        ++verified;
-        if (!found || fit.rms_residual < best.residual_m) {
-          found = true;
-          for (unsigned i = 0; i < k; ++i) best.match[i] = *database_.landmark(candidate[i]);
-          best.alignment = fit.transform;
-          best.residual_m = fit.rms_residual;
-          best.score = std::clamp(1.0 - normalised_error / (k - 1), 0.0, 1.0);
-        }
-        return true;
-      });
+  Candidate candidate;
+  database_.for_each_match(shape, config_.match.max_candidates_per_query, limited,
+                           [&](std::span<const LandmarkId> ids) {
+                             if (verify_candidate(q, ids, candidate)) {
+                               ++verified;
+                               keep_if_best(candidate, found, best);
+                             }
+                             return true;
+                           });
   if (limited) ++counters_.candidate_limit_hits;
   if (!found) return false;
 
-  best.k = k;
+  best.k = config_.chain.k;
   best.verified_candidates = verified;
-  best.aligned_pairs = k;
+  best.aligned_pairs = best.k;
   set_relative_pose(best);
   return true;
+}
+
+SequenceEngine::Query SequenceEngine::load_query(std::span<const LandmarkId> ids, const SequenceShape& shape,
+                                                 bool over_skipped_row, MatchEvent& best) const {
+  Query q{ids, &shape, over_skipped_row, best.query.data(), {}};
+  for (unsigned i = 0; i < config_.chain.k; ++i) {
+    best.query[i] = *database_.landmark(ids[i]);
+    q.points[i] = {best.query[i].x, best.query[i].y};
+  }
+  return q;
+}
+
+bool SequenceEngine::verify_candidate(const Query& query, std::span<const LandmarkId> ids,
+                                      Candidate& candidate) {
+  const unsigned k = config_.chain.k;
+  const MatchConfig& mc = config_.match;
+  ++counters_.candidates;
+  if (too_recent(query, ids)) {
+    ++counters_.candidates_too_recent;
+    return false;
+  }
+  measure_candidate(query, ids, candidate);
+  candidate.fit = fit_rigid_2d({candidate.points.data(), k}, {query.points.data(), k});
+  if (candidate.fit.rms_residual > mc.max_residual_m) {
+    ++counters_.candidates_rejected_residual;
+    return false;
+  }
+  if (frames_too_far_apart(query, candidate)) {
+    ++counters_.candidates_rejected_frames_apart;
+    return false;
+  }
+  // Places of a loaded map were moved before this session's start.
+  const double first_station = database_.landmark(ids[0])->station;
+  if (mc.confirm_loaded_places && first_station < 0.0 && !accept_into_loaded_map(query, candidate))
+    return false;
+  if (mc.max_drift_rel > 0.0 && first_station >= 0.0 && beyond_odometry_prior(query, candidate)) {
+    ++counters_.candidates_rejected_drift;
+    return false;
+  }
+  return true;
+}
+
+bool SequenceEngine::too_recent(const Query& query, std::span<const LandmarkId> ids) const {
+  const MatchConfig& mc = config_.match;
+  const Landmark& candidate_last = *database_.landmark(ids[config_.chain.k - 1]);
+  return candidate_last.station > query.first().station - mc.min_separation_m ||
+         candidate_last.t > query.first().t - mc.min_separation_s;
+}
+
+void SequenceEngine::measure_candidate(const Query& query, std::span<const LandmarkId> ids,
+                                       Candidate& candidate) const {
+  candidate.ids = ids;
+  candidate.normalised_error = 0.0;
+  for (unsigned i = 0; i < config_.chain.k; ++i) {
+    const Landmark& landmark = *database_.landmark(ids[i]);
+    candidate.points[i] = {landmark.x, landmark.y};
+    if (i > 0) {
+      const double d = (candidate.points[i] - candidate.points[i - 1]).norm();
+      const double expected = query.shape->distances[i];
+      const double tolerance = database_.quantiser().tolerance(d, expected);
+      candidate.normalised_error += std::abs(d - expected) / tolerance;
+    }
+  }
+}
+
+bool SequenceEngine::frames_too_far_apart(const Query& query, const Candidate& candidate) const {
+  const double limit = config_.match.max_frame_distance_m;
+  if (limit <= 0.0) return false;
+  // The loop's two frames, as far apart as its relative pose says.
+  const unsigned k = config_.chain.k;
+  const std::optional<Pose2> relative =
+      relative_car_pose(candidate.fit.transform, query.last(), *database_.landmark(candidate.ids[k - 1]));
+  return relative && std::hypot(relative->x, relative->y) > limit;
+}
+
+bool SequenceEngine::accept_into_loaded_map(const Query& query, const Candidate& candidate) {
+  // Until the loaded map's alignment is known, only sequences without a gap
+  // may propose it: a skipped row is one more way for a look-alike place to
+  // fit, and a rival hypothesis holds the true one back.
+  if (query.over_skipped_row && !confirmed_.valid) return false;
+  // A place of a loaded map has no odometry prior: it must agree over k + 1
+  // rows (this sequence and the one a row back, both verified)...
+  if (!continues_loaded_sequence(query, candidate)) {
+    ++counters_.loaded_single_sequences;
+    return false;
+  }
+  // ...and its alignment must agree with how the two sessions' frames are
+  // known (or about to be found) to relate.
+  const SessionAlignment proposed = proposed_alignment(query, candidate);
+  if (confirmed_.valid) return agrees_with_confirmed(proposed);
+  return confirm_by_hypotheses(query, candidate, proposed);
+}
+
+bool SequenceEngine::continues_loaded_sequence(const Query& query, const Candidate& candidate) {
+  const unsigned k = config_.chain.k;
+  const bool continues =
+      std::find(loaded_pairs_.begin(), loaded_pairs_.end(),
+                LandmarkPair{query.ids[k - 2], candidate.ids[k - 2]}) != loaded_pairs_.end();
+  // Remembered so that the sequence a row further on can continue this one.
+  if (loaded_pairs_.full()) loaded_pairs_.erase_at(0);
+  (void)loaded_pairs_.push_back({query.ids[k - 1], candidate.ids[k - 1]});
+  return continues;
+}
+
+SequenceEngine::SessionAlignment SequenceEngine::proposed_alignment(const Query& query,
+                                                                    const Candidate& candidate) const {
+  const unsigned k = config_.chain.k;
+  Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
+  for (unsigned i = 0; i < k; ++i) {
+    query_centre += query.points[i] / k;
+    candidate_centre += candidate.points[i] / k;
+  }
+  return {true, candidate.fit.transform, query.first().station, candidate_centre, query_centre};
+}
+
+bool SequenceEngine::agrees_with_confirmed(const SessionAlignment& proposed) {
+  if (!agrees(confirmed_.transform, proposed.from, proposed.to, proposed.transform.yaw,
+              proposed.station - confirmed_.station)) {
+    ++counters_.loaded_rejected;
+    return false;
+  }
+  confirmed_ = {true, proposed.transform, proposed.station};
+  return true;
+}
+
+bool SequenceEngine::confirm_by_hypotheses(const Query& query, const Candidate& candidate,
+                                           const SessionAlignment& proposed) {
+  // Confirmed by earlier hypotheses that agree and rest on other landmarks (at
+  // least a row further back along the drive), provided no rival alignment,
+  // one this match disagrees with, is as well supported: on look-alike blocks
+  // a wrong alignment can find a second match too, but not more than the true
+  // one. The matches of the agreeing hypotheses, held back so far, are sent
+  // now.
+  unsigned support = 0;
+  for (const SessionAlignment& h : hypotheses_) support += supports(h, proposed) ? 1 : 0;
+  const unsigned rival_support = support > 0 ? strongest_rival_support(proposed) : 0;
+  // This match plus the hypotheses it agrees with, against the rival.
+  const bool confirmed = support > 0 && support + 1 > rival_support;
+  if (support > 0 && !confirmed) ++counters_.loaded_rivalled;
+  if (!confirmed) {
+    hold_hypothesis(query, candidate, proposed);
+    return false;
+  }
+  for (std::size_t h = 0; h < hypotheses_.size(); ++h)
+    if (supports(hypotheses_[h], proposed)) hold_for_release(held_matches_[h]);
+  confirmed_ = {true, proposed.transform, proposed.station};
+  hypotheses_.clear();
+  held_matches_.clear();
+  return true;
+}
+
+bool SequenceEngine::supports(const SessionAlignment& hypothesis, const SessionAlignment& proposed) const {
+  const MatchConfig& mc = config_.match;
+  const double driven = proposed.station - hypothesis.station;
+  return driven >= mc.confirm_min_gap_m && driven <= mc.confirm_within_m &&
+         agrees(hypothesis.transform, proposed.from, proposed.to, proposed.transform.yaw, driven);
+}
+
+unsigned SequenceEngine::strongest_rival_support(const SessionAlignment& proposed) const {
+  const double within = config_.match.confirm_within_m;
+  unsigned strongest = 0;
+  for (std::size_t g = 0; g < hypotheses_.size(); ++g) {
+    const SessionAlignment& rival = hypotheses_[g];
+    const double driven = proposed.station - rival.station;
+    if (driven > within || agrees(proposed.transform, rival.from, rival.to, rival.transform.yaw, driven))
+      continue;
+    unsigned its = 1;
+    for (std::size_t h = 0; h < hypotheses_.size(); ++h) {
+      const SessionAlignment& other = hypotheses_[h];
+      const double apart = std::abs(rival.station - other.station);
+      if (h != g && apart <= within &&
+          agrees(rival.transform, other.from, other.to, other.transform.yaw, apart))
+        ++its;
+    }
+    strongest = std::max(strongest, its);
+  }
+  return strongest;
+}
+
+void SequenceEngine::hold_hypothesis(const Query& query, const Candidate& candidate,
+                                     const SessionAlignment& proposed) {
+  const unsigned k = config_.chain.k;
+  if (hypotheses_.full()) {
+    hypotheses_.erase_at(0);
+    held_matches_.erase_at(0);
+  }
+  hypotheses_.push_back(proposed);
+  MatchEvent& held = held_matches_.push_back_slot();
+  held.k = k;
+  for (unsigned i = 0; i < k; ++i) {
+    held.query[i] = query.landmarks[i];
+    held.match[i] = *database_.landmark(candidate.ids[i]);
+  }
+  held.alignment = candidate.fit.transform;
+  held.residual_m = candidate.fit.rms_residual;
+  held.score = score_of(candidate);
+  held.verified_candidates = 1;
+  held.aligned_pairs = k;
+  set_relative_pose(held);
+  ++counters_.loaded_hypotheses;
+}
+
+bool SequenceEngine::beyond_odometry_prior(const Query& query, const Candidate& candidate) const {
+  // Same session: the places' world positions differ by the odometry's drift only.
+  const unsigned k = config_.chain.k;
+  const MatchConfig& mc = config_.match;
+  Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), candidate_centre = Eigen::Vector2d::Zero();
+  for (unsigned i = 0; i < k; ++i) {
+    query_centre += query.points[i];
+    candidate_centre += candidate.points[i];
+  }
+  const double driven = query.first().station - database_.landmark(candidate.ids[k - 1])->station;
+  const double apart = (query_centre - candidate_centre).norm() / k;
+  const double turned = std::abs(candidate.fit.transform.yaw) * 180.0 / 3.14159265358979323846;
+  return apart > mc.max_drift_abs_m + mc.max_drift_rel * driven ||
+         turned > mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven;
+}
+
+double SequenceEngine::score_of(const Candidate& candidate) const {
+  return std::clamp(1.0 - candidate.normalised_error / (config_.chain.k - 1), 0.0, 1.0);
+}
+
+void SequenceEngine::keep_if_best(const Candidate& candidate, bool& found, MatchEvent& best) const {
+  if (found && !(candidate.fit.rms_residual < best.residual_m)) return;
+  found = true;
+  for (unsigned i = 0; i < config_.chain.k; ++i) best.match[i] = *database_.landmark(candidate.ids[i]);
+  best.alignment = candidate.fit.transform;
+  best.residual_m = candidate.fit.rms_residual;
+  best.score = score_of(candidate);
 }
 
 void SequenceEngine::set_relative_pose(MatchEvent& event) const {

@@ -17,6 +17,7 @@
 #include "app/common/fixed_vector.hpp"
 #include "app/engine/config.hpp"
 #include "app/engine/landmark_tracker.hpp"
+#include "app/engine/rigid_alignment.hpp"
 #include "app/engine/sequence_database.hpp"
 #include "app/engine/types.hpp"
 
@@ -135,7 +136,9 @@ class SequenceEngine {
   // `may_match`.
   void chain(LandmarkId id, bool may_match, MatchSink& sink);
   // Best verified match of one new sequence (`over_skipped_row`: it steps
-  // over one of the earlier rows); false when there is none.
+  // over one of the earlier rows); false when there is none. Each candidate
+  // the database proposes goes through verify_candidate(); keep_if_best()
+  // keeps the one that fits best.
   bool match(std::span<const LandmarkId> query, const SequenceShape& shape, bool over_skipped_row,
              MatchEvent& best);
   void set_relative_pose(MatchEvent& event) const;
@@ -144,6 +147,58 @@ class SequenceEngine {
   // run: k points nearly in a line along the road leave the rotation, and so
   // the pose at the car, the least certain; a few more rows pin it down.
   void extend_closure_run(MatchEvent& event);
+
+  // The new sequence being matched; its landmarks live in the MatchEvent
+  // being filled.
+  struct Query {
+    std::span<const LandmarkId> ids;
+    const SequenceShape* shape = nullptr;
+    bool over_skipped_row = false;
+    const Landmark* landmarks = nullptr;  // k of them, oldest first
+    std::array<Eigen::Vector2d, kMaxSequenceLength> points{};
+    const Landmark& first() const { return landmarks[0]; }
+    const Landmark& last() const { return landmarks[ids.size() - 1]; }
+  };
+  // A stored sequence whose labels and distances agree with the query's.
+  struct Candidate {
+    std::span<const LandmarkId> ids;
+    std::array<Eigen::Vector2d, kMaxSequenceLength> points{};
+    double normalised_error = 0.0;  // distance errors in tolerances, summed
+    RigidFit fit{};                 // candidate onto query
+  };
+  Query load_query(std::span<const LandmarkId> ids, const SequenceShape& shape, bool over_skipped_row,
+                   MatchEvent& best) const;
+  // The steps a candidate must pass, in order, each counting its rejections:
+  // far enough back, rigid fit within the residual, frames close enough,
+  // then the loaded map's confirmation or the odometry prior.
+  bool verify_candidate(const Query& query, std::span<const LandmarkId> ids, Candidate& candidate);
+  // Too close behind the query (in distance or time) to be an earlier visit.
+  bool too_recent(const Query& query, std::span<const LandmarkId> ids) const;
+  // Fills the candidate's points and its distance error.
+  void measure_candidate(const Query& query, std::span<const LandmarkId> ids, Candidate& candidate) const;
+  bool frames_too_far_apart(const Query& query, const Candidate& candidate) const;
+  // A candidate in a loaded map (no odometry prior): true once it continues
+  // a verified sequence and its alignment is confirmed.
+  bool accept_into_loaded_map(const Query& query, const Candidate& candidate);
+  // Whether the sequence a row back matched this candidate's a row back;
+  // remembers this pair for the next one.
+  bool continues_loaded_sequence(const Query& query, const Candidate& candidate);
+  struct SessionAlignment;
+  SessionAlignment proposed_alignment(const Query& query, const Candidate& candidate) const;
+  bool agrees_with_confirmed(const SessionAlignment& proposed);
+  // No alignment confirmed yet: confirms this one, or holds it back as a
+  // hypothesis (false).
+  bool confirm_by_hypotheses(const Query& query, const Candidate& candidate,
+                             const SessionAlignment& proposed);
+  bool supports(const SessionAlignment& hypothesis, const SessionAlignment& proposed) const;
+  // Support of the best supported hypothesis that `proposed` disagrees with.
+  unsigned strongest_rival_support(const SessionAlignment& proposed) const;
+  void hold_hypothesis(const Query& query, const Candidate& candidate, const SessionAlignment& proposed);
+  // Same session: the places differ by more than the odometry can drift.
+  bool beyond_odometry_prior(const Query& query, const Candidate& candidate) const;
+  // 1 = distances agree exactly, 0 = at tolerance.
+  double score_of(const Candidate& candidate) const;
+  void keep_if_best(const Candidate& candidate, bool& found, MatchEvent& best) const;
 
   EngineConfig config_;
   LandmarkTracker tracker_;

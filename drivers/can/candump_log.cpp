@@ -64,99 +64,139 @@ std::size_t format_candump_line(const CanFrame& frame, std::string_view interfac
   return static_cast<std::size_t>(n);
 }
 
-bool parse_candump_line(std::string_view line, CandumpRecord& out, CandumpLineError& error) noexcept {
+namespace {
+
+// Where parsing one line has got to; fail() records the first error.
+struct LineCursor {
+  std::string_view line;
   std::size_t pos = 0;
-  auto fail = [&](std::size_t at, const char* what) {
+  CandumpLineError& error;
+
+  bool fail(std::size_t at, const char* what) {
     error.column = at + 1;
     error.what = what;
     return false;
-  };
-  out = CandumpRecord{};
+  }
+  bool at_end() const { return pos >= line.size(); }
+  bool digit() const { return !at_end() && line[pos] >= '0' && line[pos] <= '9'; }
+  bool expect(char c, const char* what) {
+    if (at_end() || line[pos] != c) return fail(pos, what);
+    ++pos;
+    return true;
+  }
+};
 
-  if (line.empty()) return fail(0, "empty line");
-  if (line[pos] != '(') return fail(pos, "expected '(' starting the timestamp");
-  ++pos;
+// "(SECONDS.UUUUUU) " into nanoseconds.
+bool parse_timestamp(LineCursor& in, std::int64_t& ns) {
+  if (!in.expect('(', "expected '(' starting the timestamp")) return false;
   // Seconds: 1..10 digits, at most what nanoseconds in 64 bits hold (the
   // year 2262): a timestamp beyond would overflow, not merely be wrong.
   constexpr std::int64_t kMaxSeconds = std::numeric_limits<std::int64_t>::max() / 1'000'000'000 - 1;
   std::int64_t sec = 0;
-  const std::size_t sec_start = pos;
-  while (pos < line.size() && line[pos] >= '0' && line[pos] <= '9') {
-    if (pos - sec_start >= 10) return fail(pos, "timestamp seconds too long");
-    sec = sec * 10 + (line[pos] - '0');
-    ++pos;
+  const std::size_t sec_start = in.pos;
+  while (in.digit()) {
+    if (in.pos - sec_start >= 10) return in.fail(in.pos, "timestamp seconds too long");
+    sec = sec * 10 + (in.line[in.pos] - '0');
+    ++in.pos;
   }
-  if (pos == sec_start) return fail(pos, "expected timestamp seconds (digits)");
-  if (sec > kMaxSeconds) return fail(sec_start, "timestamp seconds beyond the year 2262");
-  if (pos >= line.size() || line[pos] != '.') return fail(pos, "expected '.' in the timestamp");
-  ++pos;
+  if (in.pos == sec_start) return in.fail(in.pos, "expected timestamp seconds (digits)");
+  if (sec > kMaxSeconds) return in.fail(sec_start, "timestamp seconds beyond the year 2262");
+  if (!in.expect('.', "expected '.' in the timestamp")) return false;
   std::int64_t usec = 0;
-  for (int i = 0; i < 6; ++i, ++pos) {
-    if (pos >= line.size() || line[pos] < '0' || line[pos] > '9')
-      return fail(pos, "timestamp needs exactly 6 digits of microseconds");
-    usec = usec * 10 + (line[pos] - '0');
+  for (int i = 0; i < 6; ++i, ++in.pos) {
+    if (!in.digit()) return in.fail(in.pos, "timestamp needs exactly 6 digits of microseconds");
+    usec = usec * 10 + (in.line[in.pos] - '0');
   }
-  if (pos >= line.size() || line[pos] != ')') return fail(pos, "expected ')' after 6 digits of microseconds");
-  ++pos;
-  if (pos >= line.size() || line[pos] != ' ') return fail(pos, "expected one space after ')'");
-  ++pos;
+  if (!in.expect(')', "expected ')' after 6 digits of microseconds")) return false;
+  if (!in.expect(' ', "expected one space after ')'")) return false;
+  ns = sec * 1'000'000'000 + usec * 1000;
+  return true;
+}
 
-  const std::size_t if_start = pos;
-  while (pos < line.size() && line[pos] != ' ') ++pos;
-  const std::string_view iface = line.substr(if_start, pos - if_start);
-  if (iface.empty()) return fail(if_start, "missing interface name");
-  if (!valid_interface(iface)) return fail(if_start, "bad interface name (1..15 of [A-Za-z0-9_.@-])");
-  if (pos >= line.size()) return fail(pos, "expected ' ID#DATA' after the interface name");
-  ++pos;  // the space
+// "INTERFACE " (the space consumed).
+bool parse_interface(LineCursor& in, std::string_view& iface) {
+  const std::size_t if_start = in.pos;
+  while (!in.at_end() && in.line[in.pos] != ' ') ++in.pos;
+  iface = in.line.substr(if_start, in.pos - if_start);
+  if (iface.empty()) return in.fail(if_start, "missing interface name");
+  if (!valid_interface(iface)) return in.fail(if_start, "bad interface name (1..15 of [A-Za-z0-9_.@-])");
+  if (in.at_end()) return in.fail(in.pos, "expected ' ID#DATA' after the interface name");
+  ++in.pos;  // the space
+  return true;
+}
 
-  const std::size_t id_start = pos;
-  std::uint32_t id = 0;
-  while (pos < line.size() && line[pos] != '#') {
-    const int v = hex_value(line[pos]);
-    if (v < 0) return fail(pos, "bad character in the CAN id (hex digits expected)");
-    if (pos - id_start >= 8) return fail(pos, "CAN id longer than 8 hex digits");
+// "ID#" (the '#' consumed): 3 hex digits standard, 8 extended.
+bool parse_id(LineCursor& in, std::uint32_t& id, bool& extended) {
+  const std::size_t id_start = in.pos;
+  id = 0;
+  while (!in.at_end() && in.line[in.pos] != '#') {
+    const int v = hex_value(in.line[in.pos]);
+    if (v < 0) return in.fail(in.pos, "bad character in the CAN id (hex digits expected)");
+    if (in.pos - id_start >= 8) return in.fail(in.pos, "CAN id longer than 8 hex digits");
     id = (id << 4) | static_cast<std::uint32_t>(v);
-    ++pos;
+    ++in.pos;
   }
-  const std::size_t id_len = pos - id_start;
-  if (pos >= line.size()) return fail(pos, "missing '#' after the CAN id");
-  bool extended = false;
+  const std::size_t id_len = in.pos - id_start;
+  if (in.at_end()) return in.fail(in.pos, "missing '#' after the CAN id");
+  extended = false;
   if (id_len == 3) {
-    if (id > CanFrame::kMaxStandardId) return fail(id_start, "standard CAN id above 0x7FF");
+    if (id > CanFrame::kMaxStandardId) return in.fail(id_start, "standard CAN id above 0x7FF");
   } else if (id_len == 8) {
-    if (id & 0x20000000U) return fail(id_start, "error frames are not supported");
-    if (id > CanFrame::kMaxExtendedId) return fail(id_start, "extended CAN id above 0x1FFFFFFF");
+    if (id & 0x20000000U) return in.fail(id_start, "error frames are not supported");
+    if (id > CanFrame::kMaxExtendedId) return in.fail(id_start, "extended CAN id above 0x1FFFFFFF");
     extended = true;
   } else {
-    return fail(id_start, "CAN id must have 3 (standard) or 8 (extended) hex digits");
+    return in.fail(id_start, "CAN id must have 3 (standard) or 8 (extended) hex digits");
   }
-  ++pos;  // '#'
+  ++in.pos;  // '#'
+  return true;
+}
 
-  if (pos < line.size() && line[pos] == '#') return fail(pos, "CAN FD frames are not supported");
+// Up to 8 data bytes as hex pairs, then at most a direction mark.
+bool parse_data(LineCursor& in, std::array<std::uint8_t, 8>& data, std::uint8_t& dlc) {
+  const std::string_view line = in.line;
+  std::size_t& pos = in.pos;
+  if (pos < line.size() && line[pos] == '#') return in.fail(pos, "CAN FD frames are not supported");
   if (pos < line.size() && (line[pos] == 'R' || line[pos] == 'r'))
-    return fail(pos, "remote (RTR) frames are not supported");
-  std::uint8_t dlc = 0;
+    return in.fail(pos, "remote (RTR) frames are not supported");
+  dlc = 0;
   while (pos < line.size() && line[pos] != ' ') {
     const int hi = hex_value(line[pos]);
-    if (hi < 0) return fail(pos, "bad character in the data (hex digits expected)");
+    if (hi < 0) return in.fail(pos, "bad character in the data (hex digits expected)");
     if (pos + 1 >= line.size() || line[pos + 1] == ' ')
-      return fail(pos, "odd number of hex digits in the data");
+      return in.fail(pos, "odd number of hex digits in the data");
     const int lo = hex_value(line[pos + 1]);
-    if (lo < 0) return fail(pos + 1, "bad character in the data (hex digits expected)");
-    if (dlc == CanFrame::kMaxDlc) return fail(pos, "more than 8 data bytes");
-    out.frame.data[dlc++] = static_cast<std::uint8_t>((hi << 4) | lo);
+    if (lo < 0) return in.fail(pos + 1, "bad character in the data (hex digits expected)");
+    if (dlc == CanFrame::kMaxDlc) return in.fail(pos, "more than 8 data bytes");
+    data[dlc++] = static_cast<std::uint8_t>((hi << 4) | lo);
     pos += 2;
   }
   if (pos < line.size()) {
     // candump may mark the direction of a frame with a trailing " R" or " T".
     const std::string_view rest = line.substr(pos);
-    if (rest != " R" && rest != " T") return fail(pos, "unexpected text after the data");
+    if (rest != " R" && rest != " T") return in.fail(pos, "unexpected text after the data");
   }
+  return true;
+}
 
+}  // namespace
+
+bool parse_candump_line(std::string_view line, CandumpRecord& out, CandumpLineError& error) noexcept {
+  out = CandumpRecord{};
+  LineCursor in{line, 0, error};
+  if (line.empty()) return in.fail(0, "empty line");
+  std::int64_t timestamp_ns = 0;
+  std::string_view iface;
+  std::uint32_t id = 0;
+  bool extended = false;
+  std::uint8_t dlc = 0;
+  if (!parse_timestamp(in, timestamp_ns) || !parse_interface(in, iface) || !parse_id(in, id, extended) ||
+      !parse_data(in, out.frame.data, dlc))
+    return false;
   out.frame.id = id;
   out.frame.extended = extended;
   out.frame.dlc = dlc;
-  out.frame.timestamp_ns = sec * 1'000'000'000 + usec * 1000;
+  out.frame.timestamp_ns = timestamp_ns;
   std::memcpy(out.interface.data(), iface.data(), iface.size());
   out.interface[iface.size()] = '\0';
   return true;

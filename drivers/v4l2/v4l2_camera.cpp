@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <optional>
 
 #include "platform/syscall.hpp"
 
@@ -237,85 +238,104 @@ std::error_code V4l2Camera::wait_frame(FrameView& out, std::chrono::milliseconds
   const Clock::time_point deadline = Clock::now() + std::max(timeout, milliseconds{0});
   bool poll_error = false;
   for (;;) {
-    Clock::time_point now = Clock::now();
+    const Clock::time_point now = Clock::now();
     if (state_ == State::Closed || state_ == State::Opened) return V4l2Error::NotStreaming;
-
-    if (state_ == State::Recovering) {
-      if (now >= next_attempt_) {
-        attempt_reopen();
-        if (state_ != State::Recovering) continue;
-        now = Clock::now();
-      }
-      if (now >= deadline) {
-        ++counters_.timeouts;
-        return std::make_error_code(std::errc::timed_out);
-      }
-      int ignored = 0;
-      (void)platform::sys_poll(nullptr, 0, milliseconds{ms_until(std::min(next_attempt_, deadline), now)},
-                               ignored);
-      continue;
-    }
-
-    // Streaming or Stalled.
-    if (held_count_ >= device_.buffer_count()) return V4l2Error::BuffersExhausted;
-    v4l2_buffer buf{};
-    const std::error_code ec = device_.dequeue(buf);
-    if (!ec) {
-      if (handle_buffer(buf, out)) return {};
-      continue;
-    }
-    if (!platform::is_would_block(ec)) {
-      note_streaming_error(ec);
-      if (state_ == State::Recovering) continue;
-      return ec;
-    }
-    if (poll_error) {
-      // poll() flagged an error but DQBUF has nothing: the queue is broken.
-      note_streaming_error(platform::make_error(EIO));
-      poll_error = false;
-      continue;
-    }
-
-    // Nothing ready: sleep until a frame, the stall checks or the deadline.
-    Clock::time_point wake = deadline;
-    const Clock::time_point stall_at = last_frame_ + config_.frame_timeout;
-    const Clock::time_point restart_at = stall_at + config_.stall_restart;
-    if (state_ == State::Streaming) wake = std::min(wake, stall_at);
-    if (state_ == State::Stalled && config_.stall_restart.count() > 0) wake = std::min(wake, restart_at);
-    pollfd pfd{};
-    pfd.fd = device_.fd();
-    pfd.events = POLLIN;
-    int ready = 0;
-    if (auto pec = platform::sys_poll(&pfd, 1, milliseconds{ms_until(wake, now)}, ready)) {
-      note_streaming_error(pec);
-      if (state_ == State::Recovering) continue;
-      return pec;
-    }
-    if (ready > 0) {
-      if ((pfd.revents & (POLLERR | POLLHUP | POLLNVAL)) != 0) {
-        if ((pfd.revents & POLLHUP) != 0) {
-          enter_recovering(platform::make_error(ENODEV));
-          continue;
-        }
-        poll_error = true;
-      }
-      continue;  // DQBUF again
-    }
-
-    now = Clock::now();
-    if (state_ == State::Streaming && now >= stall_at) {
-      state_ = State::Stalled;
-      ++counters_.stalls;
-    }
-    if (state_ == State::Stalled && config_.stall_restart.count() > 0 && now >= restart_at) {
-      enter_recovering(std::make_error_code(std::errc::timed_out));
-      continue;
-    }
-    if (now >= deadline) {
-      ++counters_.timeouts;
-      return std::make_error_code(std::errc::timed_out);
-    }
+    const std::optional<std::error_code> done = state_ == State::Recovering
+                                                    ? wait_while_recovering(deadline, now)
+                                                    : dequeue_or_sleep(out, deadline, now, poll_error);
+    if (done) return *done;
   }
+}
+
+std::optional<std::error_code> V4l2Camera::wait_while_recovering(Clock::time_point deadline,
+                                                                 Clock::time_point now) noexcept {
+  if (now >= next_attempt_) {
+    attempt_reopen();
+    if (state_ != State::Recovering) return std::nullopt;
+    now = Clock::now();
+  }
+  if (now >= deadline) {
+    ++counters_.timeouts;
+    return std::make_error_code(std::errc::timed_out);
+  }
+  int ignored = 0;
+  (void)platform::sys_poll(nullptr, 0, milliseconds{ms_until(std::min(next_attempt_, deadline), now)},
+                           ignored);
+  return std::nullopt;
+}
+
+std::optional<std::error_code> V4l2Camera::dequeue_or_sleep(FrameView& out, Clock::time_point deadline,
+                                                            Clock::time_point now,
+                                                            bool& poll_error) noexcept {
+  // Streaming or Stalled.
+  if (held_count_ >= device_.buffer_count()) return V4l2Error::BuffersExhausted;
+  v4l2_buffer buf{};
+  const std::error_code ec = device_.dequeue(buf);
+  if (!ec) {
+    if (handle_buffer(buf, out)) return std::error_code{};
+    return std::nullopt;
+  }
+  if (!platform::is_would_block(ec)) {
+    note_streaming_error(ec);
+    if (state_ == State::Recovering) return std::nullopt;
+    return ec;
+  }
+  if (poll_error) {
+    // poll() flagged an error but DQBUF has nothing: the queue is broken.
+    note_streaming_error(platform::make_error(EIO));
+    poll_error = false;
+    return std::nullopt;
+  }
+  return sleep_until_ready(deadline, now, poll_error);
+}
+
+std::optional<std::error_code> V4l2Camera::sleep_until_ready(Clock::time_point deadline,
+                                                             Clock::time_point now,
+                                                             bool& poll_error) noexcept {
+  // Nothing ready: sleep until a frame, the stall checks or the deadline.
+  Clock::time_point wake = deadline;
+  const Clock::time_point stall_at = last_frame_ + config_.frame_timeout;
+  const Clock::time_point restart_at = stall_at + config_.stall_restart;
+  if (state_ == State::Streaming) wake = std::min(wake, stall_at);
+  if (state_ == State::Stalled && config_.stall_restart.count() > 0) wake = std::min(wake, restart_at);
+  pollfd pfd{};
+  pfd.fd = device_.fd();
+  pfd.events = POLLIN;
+  int ready = 0;
+  if (auto pec = platform::sys_poll(&pfd, 1, milliseconds{ms_until(wake, now)}, ready)) {
+    note_streaming_error(pec);
+    if (state_ == State::Recovering) return std::nullopt;
+    return pec;
+  }
+  if (ready > 0) {
+    if ((pfd.revents & (POLLERR | POLLHUP | POLLNVAL)) != 0) {
+      if ((pfd.revents & POLLHUP) != 0) {
+        enter_recovering(platform::make_error(ENODEV));
+        return std::nullopt;
+      }
+      poll_error = true;
+    }
+    return std::nullopt;  // DQBUF again
+  }
+  return check_stall(deadline, stall_at, restart_at);
+}
+
+std::optional<std::error_code> V4l2Camera::check_stall(Clock::time_point deadline, Clock::time_point stall_at,
+                                                       Clock::time_point restart_at) noexcept {
+  const Clock::time_point now = Clock::now();
+  if (state_ == State::Streaming && now >= stall_at) {
+    state_ = State::Stalled;
+    ++counters_.stalls;
+  }
+  if (state_ == State::Stalled && config_.stall_restart.count() > 0 && now >= restart_at) {
+    enter_recovering(std::make_error_code(std::errc::timed_out));
+    return std::nullopt;
+  }
+  if (now >= deadline) {
+    ++counters_.timeouts;
+    return std::make_error_code(std::errc::timed_out);
+  }
+  return std::nullopt;
 }
 
 std::error_code V4l2Camera::release(const FrameView& frame) noexcept {

@@ -45,6 +45,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string_view>
 #include <system_error>
 
@@ -159,6 +160,17 @@ class V4l2Camera {
   void attempt_reopen() noexcept;
   void note_streaming_error(std::error_code ec) noexcept;
   bool handle_buffer(const v4l2_buffer& buf, FrameView& out) noexcept;  // true: frame for caller
+  // The steps of wait_frame(): each returns what wait_frame() returns, or
+  // nothing to go round again.
+  std::optional<std::error_code> wait_while_recovering(Clock::time_point deadline,
+                                                       Clock::time_point now) noexcept;
+  std::optional<std::error_code> dequeue_or_sleep(FrameView& out, Clock::time_point deadline,
+                                                  Clock::time_point now, bool& poll_error) noexcept;
+  std::optional<std::error_code> sleep_until_ready(Clock::time_point deadline, Clock::time_point now,
+                                                   bool& poll_error) noexcept;
+  // After a poll() that timed out: marks a stall, restarts a long one.
+  std::optional<std::error_code> check_stall(Clock::time_point deadline, Clock::time_point stall_at,
+                                             Clock::time_point restart_at) noexcept;
 
   V4l2Device device_;
   State state_ = State::Closed;

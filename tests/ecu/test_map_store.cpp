@@ -259,6 +259,57 @@ TEST_CASE("foreign files, other versions and another k are refused and left alon
   CHECK(read_bytes(path) == saved_bytes);
 }
 
+TEST_CASE("a map with several faults is judged by the first header check it fails") {
+  const std::string dir = fresh_dir("several_faults");
+  const std::string path = dir + "/map.bin";
+  const MatchConfig match;
+  ecu::MapStore store(path);
+  SequenceDatabase saved(small_capacity(), match, kK);
+  fill(saved, 5);
+  const auto with_header_crc = [](std::vector<char> bytes) {
+    std::array<std::uint8_t, 60> header{};
+    std::copy_n(bytes.begin(), 60, header.begin());
+    const std::uint32_t crc = ecu::crc32(header);
+    for (int i = 0; i < 4; ++i) bytes[60 + i] = static_cast<char>(crc >> (8 * i));
+    return bytes;
+  };
+
+  // Another version and k: the version is checked first.
+  REQUIRE_FALSE(store.save(saved));
+  std::vector<char> bytes = read_bytes(path);
+  bytes[8] = 2;
+  bytes[16] = 5;
+  bytes = with_header_crc(bytes);
+  write_bytes(path, bytes, bytes.size());
+  SequenceDatabase db(small_capacity(), match, kK);
+  auto result = store.load(db, match);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kUnusable);
+  CHECK_THAT(result.message, ContainsSubstring("map version 2"));
+  CHECK(read_bytes(path) == bytes);
+
+  // Another k and a wrong size: the k comes first, and the file is left alone.
+  REQUIRE_FALSE(store.save(saved));
+  bytes = read_bytes(path);
+  bytes[16] = 5;
+  bytes = with_header_crc(bytes);
+  write_bytes(path, bytes, bytes.size() - 1);
+  result = store.load(db, match);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kUnusable);
+  CHECK_THAT(result.message, ContainsSubstring("k = 5, this ECU uses k = 4"));
+  CHECK(count_set_aside(dir) == 0);
+
+  // Another version behind a broken header checksum: damaged, set aside.
+  REQUIRE_FALSE(store.save(saved));
+  bytes = read_bytes(path);
+  bytes[8] = 2;
+  write_bytes(path, bytes, bytes.size());
+  result = store.load(db, match);
+  CHECK(result.outcome == ecu::MapLoadOutcome::kRejected);
+  CHECK_THAT(result.message, ContainsSubstring("header checksum mismatch"));
+  CHECK(count_set_aside(dir) == 1);
+  CHECK(db.stats().landmarks == 0);
+}
+
 TEST_CASE("a failed save leaves the previous map intact and no temporary behind") {
   const std::string dir = fresh_dir("atomic");
   const std::string path = dir + "/map.bin";
