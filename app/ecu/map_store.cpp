@@ -12,7 +12,7 @@
 #include <ctime>
 #include <span>
 
-#include "app/ecu/crc32.hpp"
+#include "app/common/crc32.hpp"
 #include "platform/files.hpp"
 #include "platform/os.hpp"
 

@@ -40,7 +40,7 @@
 #include <system_error>
 
 #include "app/common/result.hpp"
-#include "app/ecu/crc32.hpp"
+#include "app/common/crc32.hpp"
 #include "app/engine/config.hpp"
 #include "app/engine/sequence_database.hpp"
 #include "platform/unique_fd.hpp"

@@ -14,7 +14,7 @@
 #include <random>
 #include <vector>
 
-#include "app/ecu/crc32.hpp"
+#include "app/common/crc32.hpp"
 #include "app/ecu/map_store.hpp"
 #include "app/engine/sequence_database.hpp"
 

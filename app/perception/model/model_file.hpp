@@ -15,7 +15,7 @@
 #include <string_view>
 
 #include "app/common/result.hpp"
-#include "app/ecu/crc32.hpp"
+#include "app/common/crc32.hpp"
 
 namespace markloop::perception::model_file {
 
