@@ -72,9 +72,10 @@ TEST_CASE("a drive's files have the agreed formats") {
   const auto dir = scratch("formats");
   const auto scenario = make_scenario("grid", 4);
   REQUIRE(scenario);
-  RecordSummary summary;
+  const auto recorded = record_drive(*scenario, camera(), short_drive(dir, 4));
+  REQUIRE(recorded);
+  const RecordSummary& summary = *recorded;
   std::string error;
-  REQUIRE(record_drive(*scenario, camera(), short_drive(dir, 4), summary, error));
   CHECK(summary.frames == 30);
 
   // frames.y4m: mono, camera size, 10 fps, 30 frames.
@@ -173,11 +174,9 @@ TEST_CASE("a drive's files have the agreed formats") {
 TEST_CASE("a drive is byte-identical for a seed and differs for another") {
   const auto scenario = make_scenario("loop", 9);
   const auto other = make_scenario("loop", 10);
-  RecordSummary summary;
-  std::string error;
-  REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-a"), 9), summary, error));
-  REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-b"), 9), summary, error));
-  REQUIRE(record_drive(*other, camera(), short_drive(scratch("seed-c"), 10), summary, error));
+  REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-a"), 9)));
+  REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-b"), 9)));
+  REQUIRE(record_drive(*other, camera(), short_drive(scratch("seed-c"), 10)));
   const auto root = std::filesystem::temp_directory_path() / "markloop-sim-tests";
   for (const char* file : {"frames.y4m", "odometry.log", "frames.csv", "markings.csv", "visible.csv",
                            "markings.txt", "poses.txt"}) {
@@ -257,9 +256,9 @@ TEST_CASE("the training set has the real dataset's annotation format") {
   o.out_dir = dir.string();
   o.frames = 4;
   o.progress = false;
-  std::size_t annotations = 0;
-  std::string error;
-  REQUIRE(record_training_set(camera(), o, annotations, error));
+  const auto recorded = record_training_set(camera(), o);
+  REQUIRE(recorded);
+  const std::size_t annotations = *recorded;
   CHECK(annotations >= 4);
   const auto rows = lines_of(dir / "annotations.csv");
   CHECK(rows[0] == "image,label,x1,y1,x2,y2,x3,y3,x4,y4");
@@ -299,4 +298,22 @@ TEST_CASE("markings behind a vehicle ahead are not listed as visible") {
     }
   }
   CHECK(compared > 10);
+}
+
+TEST_CASE("a drive that cannot be written says where") {
+  const auto file = scratch("not-a-folder");
+  std::filesystem::create_directories(file.parent_path());
+  std::ofstream(file) << "a file where the drive's folder should be\n";
+  const auto scenario = make_scenario("loop", 1);
+  const auto recorded = record_drive(*scenario, camera(), short_drive(file / "drive", 1));
+  REQUIRE_FALSE(recorded);
+  CHECK(recorded.message().starts_with((file / "drive").string() + ": cannot create the directory: "));
+  TrainingSetOptions o;
+  o.out_dir = (file / "set").string();
+  o.frames = 1;
+  o.progress = false;
+  const auto set = record_training_set(camera(), o);
+  REQUIRE_FALSE(set);
+  CHECK(set.message().starts_with((file / "set" / "images").string() + ": cannot create the directory: "));
+  std::filesystem::remove(file);
 }
