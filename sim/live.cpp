@@ -47,9 +47,10 @@ bool sleep_until(std::int64_t deadline_ns) {
   return false;
 }
 
-bool load_odometry(const std::string& path, std::vector<can::CanFrame>& frames, std::string& error) {
-  std::string text;
-  if (!tools::read_input(path, kMaxOdometryBytes, "an odometry log", text, error)) return false;
+Result<std::vector<can::CanFrame>> load_odometry(const std::string& path) {
+  std::string text, problem;
+  if (!tools::read_input(path, kMaxOdometryBytes, "an odometry log", text, problem)) return error(problem);
+  std::vector<can::CanFrame> frames;
   tools::Lines lines(text);
   std::string_view line;
   while (lines.next(line)) {
@@ -57,17 +58,13 @@ bool load_odometry(const std::string& path, std::vector<can::CanFrame>& frames, 
     const std::string where = path + ":" + std::to_string(lines.number()) + ":";
     can::CandumpRecord record;
     can::CandumpLineError line_error;
-    if (!can::parse_candump_line(line, record, line_error)) {
-      error = where + std::to_string(line_error.column) + ": " + line_error.what;
-      return false;
-    }
-    if (!frames.empty() && record.frame.timestamp_ns < frames.back().timestamp_ns) {
-      error = where + " time stamps go backwards";
-      return false;
-    }
+    if (!can::parse_candump_line(line, record, line_error))
+      return error(where + std::to_string(line_error.column) + ": " + line_error.what);
+    if (!frames.empty() && record.frame.timestamp_ns < frames.back().timestamp_ns)
+      return error(where + " time stamps go backwards");
     frames.push_back(record.frame);
   }
-  return true;
+  return frames;
 }
 
 // HDMI-like outputs take only frames of their DV timings' size: select the
@@ -89,65 +86,62 @@ std::error_code select_dv_timings(const LiveOptions& options, std::uint32_t widt
   return {};
 }
 
-}  // namespace
+// The bus first: its name is checked before the video device is set up.
+Status open_bus(const LiveOptions& options, can::SocketCan& bus) {
+  if (options.can_interface.empty()) return {};
+  if (const auto ec = bus.open(options.can_interface, {}))
+    return error(options.can_interface + ": cannot open: " + ec.message());
+  return {};
+}
 
-bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& error) {
-  counters = {};
-  const std::filesystem::path dir(options.drive_dir);
-  io::Y4mReader video;
-  if (!video.open((dir / "frames.y4m").string())) {
-    error = video.error();
-    return false;
-  }
-  std::vector<can::CanFrame> odometry;  // all of it, read before the clock starts
-  if (!options.can_interface.empty() && !load_odometry((dir / "odometry.log").string(), odometry, error))
-    return false;
-
-  // The bus first: its name is checked before the video device is set up.
-  can::SocketCan bus;
-  if (!options.can_interface.empty()) {
-    if (const auto ec = bus.open(options.can_interface, {})) {
-      error = options.can_interface + ": cannot open: " + ec.message();
-      return false;
-    }
-  }
-
-  const io::Y4mFormat& format = video.format();
-  v4l2::V4l2Output output;
+// Starts the V4L2 output for frames of the drive's size.
+Status start_output(const LiveOptions& options, const io::Y4mFormat& format, v4l2::V4l2Output& output) {
   v4l2::OutputConfig config;
   config.device = options.video_device;
   config.output = options.video_output;
   config.width = static_cast<std::uint32_t>(format.width);
   config.height = static_cast<std::uint32_t>(format.height);
   config.format = options.format;
-  if (const auto ec = select_dv_timings(options, config.width, config.height)) {
-    error = options.video_device + ": cannot select the output's timings: " + ec.message();
-    return false;
-  }
+  if (const auto ec = select_dv_timings(options, config.width, config.height))
+    return error(options.video_device + ": cannot select the output's timings: " + ec.message());
   config.fps = 0;  // the pacing is ours (absolute deadlines); many outputs have no rate to set
-  if (const auto ec = output.start(config)) {
-    error = options.video_device + ": cannot start the V4L2 output: " + ec.message();
-    return false;
-  }
-  if (output.format().width != config.width || output.format().height != config.height) {
-    error = options.video_device + ": the output takes " + std::to_string(output.format().width) + "x" +
-            std::to_string(output.format().height) + ", the drive is " + std::to_string(config.width) + "x" +
-            std::to_string(config.height) +
-            " (record it with a --camera of that size, or select another output)";
-    return false;
-  }
+  if (const auto ec = output.start(config))
+    return error(options.video_device + ": cannot start the V4L2 output: " + ec.message());
+  if (output.format().width != config.width || output.format().height != config.height)
+    return error(options.video_device + ": the output takes " + std::to_string(output.format().width) + "x" +
+                 std::to_string(output.format().height) + ", the drive is " + std::to_string(config.width) +
+                 "x" + std::to_string(config.height) +
+                 " (record it with a --camera of that size, or select another output)");
+  return {};
+}
 
+void stop_on_signals() {
   struct sigaction action {};
   action.sa_handler = on_signal;
   sigemptyset(&action.sa_mask);
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
   g_stop = 0;
+}
 
+// The drive opened for playing: its frames, its odometry and the devices.
+struct Playback {
+  io::Y4mReader video;
+  std::vector<can::CanFrame> odometry;  // all of it, read before the clock starts
+  can::SocketCan bus;
+  v4l2::V4l2Output output;
+};
+
+// Sends every frame and CAN frame at its deadline since the start, until
+// the end of the drive, --max-frames or a stop signal.
+LiveCounters play(const LiveOptions& options, Playback& p) {
+  LiveCounters counters;
+  const io::Y4mFormat& format = p.video.format();
   std::vector<std::uint8_t> luma(format.luma_bytes());
   const auto frame_period_ns = static_cast<std::int64_t>(format.frame_period_s() * 1e9);
+  const std::vector<can::CanFrame>& odometry = p.odometry;
   std::size_t frame = 0, next_can = 0;
-  bool frame_ready = video.read_frame(luma) == io::Y4mRead::kFrame;
+  bool frame_ready = p.video.read_frame(luma) == io::Y4mRead::kFrame;
   const std::int64_t start = monotonic_ns();
   std::size_t next_report = 1;
   const std::size_t limit = options.max_frames;
@@ -165,12 +159,12 @@ bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& e
     if (late_ms > 5.0) ++counters.late_events;
     counters.max_lateness_ms = std::max(counters.max_lateness_ms, late_ms);
     if (send_frame) {
-      if (output.send_luma(luma, std::chrono::milliseconds(50)))
+      if (p.output.send_luma(luma, std::chrono::milliseconds(50)))
         ++counters.frame_errors;
       else
         ++counters.frames_sent;
       ++frame;
-      frame_ready = video.read_frame(luma) == io::Y4mRead::kFrame;
+      frame_ready = p.video.read_frame(luma) == io::Y4mRead::kFrame;
       if (options.progress && counters.frames_sent >= next_report * 100) {
         std::fprintf(stderr, "markloop-sim: live: %zu frames\n", frame);
         ++next_report;
@@ -178,16 +172,34 @@ bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& e
     } else {
       can::CanFrame out = odometry[next_can++];
       out.timestamp_ns = 0;  // the kernel stamps what goes on the bus
-      if (bus.send(out))
+      if (p.bus.send(out))
         ++counters.can_errors;
       else
         ++counters.can_sent;
     }
   }
   counters.interrupted = g_stop != 0;
-  output.stop();
-  bus.close();
-  return true;
+  return counters;
+}
+
+}  // namespace
+
+Result<LiveCounters> run_live(const LiveOptions& options) {
+  const std::filesystem::path dir(options.drive_dir);
+  Playback p;
+  if (!p.video.open((dir / "frames.y4m").string())) return error(p.video.error());
+  if (!options.can_interface.empty()) {
+    Result<std::vector<can::CanFrame>> odometry = load_odometry((dir / "odometry.log").string());
+    if (!odometry) return odometry.error();
+    p.odometry = std::move(odometry).value();
+  }
+  if (Status opened = open_bus(options, p.bus); !opened) return opened.error();
+  if (Status started = start_output(options, p.video.format(), p.output); !started) return started.error();
+  stop_on_signals();
+  const LiveCounters counters = play(options, p);
+  p.output.stop();
+  p.bus.close();
+  return counters;
 }
 
 }  // namespace markloop::sim

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <string>
 
+#include "app/common/result.hpp"
 #include "drivers/v4l2/v4l2_format.hpp"
 
 namespace markloop::sim {
@@ -39,8 +40,8 @@ struct LiveCounters {
 // than a day of driving at the odometry's 50 Hz.
 inline constexpr std::size_t kMaxOdometryBytes = std::size_t{256} << 20;
 
-// Returns false with `error` when the drive cannot be read or a device
+// The run's counters, or an error when the drive cannot be read or a device
 // cannot be opened; send failures during the run are counted, not fatal.
-bool run_live(const LiveOptions& options, LiveCounters& counters, std::string& error);
+Result<LiveCounters> run_live(const LiveOptions& options);
 
 }  // namespace markloop::sim

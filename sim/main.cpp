@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -102,6 +103,55 @@ frame or CAN frame could not be sent; 2 on bad options or input, or a device
 that cannot be opened.
 )";
 
+// The options of each command. The help text (kUsage) is written by hand:
+// its option lines wrap and group in ways one line per option cannot.
+constexpr OptionSpec kDriveOptions[] = {
+    {"--scenario", "NAME", "built-in scenario (see \"list\"); default loop"},
+    {"--route", "FILE", "drive a pose file (KITTI or TUM) instead"},
+    {"--out", "DIR", "output folder (created if missing); required"},
+    {"--seed", "N", "seed of the world, the sensors and the conditions; default 1"},
+    {"--speed", "M/S", "driving speed, 0.1..100; default 10"},
+    {"--fps", "HZ", "camera frame rate, 1..1000; default 10"},
+    {"--laps", "N", "drive a built-in scenario's lap N times (up to 1000)"},
+    {"--camera", "FILE", "calibration (OpenCV YAML); default the built-in camera"},
+    {"--max-frames", "N", "stop after N frames"},
+    {"--occluders", "P", "share of 12 s windows with a vehicle ahead; default 0.3"},
+    {"--noise", "SIGMA", "sensor noise in grey levels; default 2"},
+    {"--wear", "W", "worst paint wear 0..1; default 0.35"},
+    {"--drift", "X", "scale of the odometry errors; default 1"},
+    {"--light", "L", "day, dusk, night or wet-glare; default day"},
+    {"--class-weights", "LIST", "NAME=W,... relative frequency of the marking classes"},
+    {"--cover-lens", "FROM:TO", "the camera's lens covered from FROM until TO seconds"},
+    {"--no-shadows", "", "no tree or building shadows"},
+    {"--no-render", "", "no frames.y4m / visible.csv (fast, for long drives)"},
+};
+
+constexpr OptionSpec kTrainingSetOptions[] = {
+    {"--out", "DIR", "output folder (created if missing); required"},
+    {"--seed", "N", "seed; default 1"},
+    {"--frames", "N", "whole frames; default 200"},
+    {"--camera", "FILE", "calibration (OpenCV YAML); default the built-in camera"},
+};
+
+constexpr OptionSpec kLiveOptions[] = {
+    {"--from", "DIR", "the recorded drive; required"},
+    {"--video", "DEVICE", "V4L2 output device, e.g. /dev/video1; required"},
+    {"--output", "N", "VIDIOC_S_OUTPUT index (default: keep the current one)"},
+    {"--can", "IF", "SocketCAN interface for the odometry, e.g. vcan0"},
+    {"--max-frames", "N", "stop after N frames"},
+    {"--format", "F", "grey or yuyv (neutral chroma); default grey"},
+};
+
+// A command's options: argv[1] is the command, its options follow.
+ParsedArgs parse_command(int argc, char** argv, std::span<const OptionSpec> options) {
+  return parse_args_or_fail(argc - 1, argv + 1, options);
+}
+
+// A value given with an option: a NUL-terminated argument of main's.
+const char* text_of(std::string_view value) {
+  return value.data();
+}
+
 perception::CameraModel camera_from(const std::string& path) {
   if (path.empty()) return perception::default_camera_model();
   auto model = perception::load_camera_model(path);
@@ -118,89 +168,98 @@ void check_out_dir(const std::string& path) {
     fail(path + ": not a directory (--out DIR: a folder, made when missing)");
 }
 
-int drive(int argc, char** argv) {
+// What `drive` was asked for.
+struct DriveRequest {
   std::string scenario_name, route_file, out_dir, camera_file;
   RecordOptions options;
   std::optional<double> speed;
   std::optional<unsigned> laps;
   WorldConfig world;
   double drift = 1.0;
-  for (int i = 2; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    if (arg == "--no-shadows") {
-      options.conditions.shadows = false;
-      continue;
-    }
-    if (arg == "--no-render") {
-      options.render = false;
-      continue;
-    }
-    const char* value = option_value(
-        argc, argv, i,
-        {"--scenario", "--route", "--out", "--seed", "--speed", "--fps", "--laps", "--camera", "--max-frames",
-         "--occluders", "--noise", "--wear", "--drift", "--light", "--class-weights", "--cover-lens"});
-    if (arg == "--scenario")
-      scenario_name = value;
-    else if (arg == "--route")
-      route_file = value;
-    else if (arg == "--out")
-      out_dir = value;
-    else if (arg == "--seed")
-      options.seed = parse_whole(arg, value);
-    else if (arg == "--speed")
-      speed = parse_number(arg, value);
-    else if (arg == "--fps")
-      options.drive.fps = parse_number(arg, value);
-    else if (arg == "--laps")
-      laps = parse_whole(arg, value);
-    else if (arg == "--camera")
-      camera_file = value;
-    else if (arg == "--max-frames")
-      options.max_frames = parse_whole(arg, value);
-    else if (arg == "--occluders")
-      options.conditions.occluder_probability = parse_number(arg, value);
-    else if (arg == "--noise")
-      options.conditions.noise_sigma = parse_number(arg, value);
-    else if (arg == "--wear")
-      options.conditions.paint_wear = parse_number(arg, value);
-    else if (arg == "--drift")
-      drift = parse_number(arg, value);
-    else if (arg == "--cover-lens") {
-      const std::string span = value;
-      const std::size_t colon = span.find(':');
-      if (colon == std::string::npos) fail("--cover-lens: expected FROM:TO (seconds), got '" + span + "'");
-      options.lens_covered_from_s = parse_number(arg, span.substr(0, colon).c_str());
-      options.lens_covered_until_s = parse_number(arg, span.substr(colon + 1).c_str());
-      if (options.lens_covered_from_s < 0 || options.lens_covered_until_s <= options.lens_covered_from_s)
-        fail("--cover-lens: expected 0 <= FROM < TO, got '" + span + "'");
-    } else if (arg == "--light") {
-      const auto light = illumination_from_name(value);
-      if (!light) fail(std::string("--light: unknown '") + value + "' (day, dusk, night, wet-glare)");
-      options.conditions.light = *light;
-    } else if (arg == "--class-weights") {
-      std::array<double, kClassCount> weights{};
-      std::string error;
-      if (!parse_class_weights(value, weights, error)) fail("--class-weights: " + error);
-      world.class_weights = weights;
-    }
-  }
-  if (out_dir.empty()) fail("--out DIR is required (see --help)");
-  check_out_dir(out_dir);
-  if (!scenario_name.empty() && !route_file.empty()) fail("give --scenario or --route, not both");
-  if (speed && !(*speed >= 0.1 && *speed <= 100)) fail("--speed must be in 0.1..100 m/s");
-  if (!(options.drive.fps >= 1 && options.drive.fps <= 1000)) fail("--fps must be in 1..1000");
-  if (laps && (*laps == 0 || *laps > 1000)) fail("--laps must be in 1..1000");
-  if (options.conditions.paint_wear < 0 || options.conditions.paint_wear > 1) fail("--wear must be in 0..1");
-  if (options.conditions.occluder_probability < 0 || options.conditions.occluder_probability > 1)
+};
+
+void apply_cover_lens(std::string_view option, const char* value, RecordOptions& options) {
+  const std::string span = value;
+  const std::size_t colon = span.find(':');
+  if (colon == std::string::npos) fail("--cover-lens: expected FROM:TO (seconds), got '" + span + "'");
+  options.lens_covered_from_s = parse_number(option, span.substr(0, colon).c_str());
+  options.lens_covered_until_s = parse_number(option, span.substr(colon + 1).c_str());
+  if (options.lens_covered_from_s < 0 || options.lens_covered_until_s <= options.lens_covered_from_s)
+    fail("--cover-lens: expected 0 <= FROM < TO, got '" + span + "'");
+}
+
+void apply_light(const char* value, Conditions& conditions) {
+  const auto light = illumination_from_name(value);
+  if (!light) fail(std::string("--light: unknown '") + value + "' (day, dusk, night, wet-glare)");
+  conditions.light = *light;
+}
+
+void apply_class_weights(const char* value, WorldConfig& world) {
+  std::array<double, kClassCount> weights{};
+  std::string error;
+  if (!parse_class_weights(value, weights, error)) fail("--class-weights: " + error);
+  world.class_weights = weights;
+}
+
+// One option of `drive`, as given; bad values fail.
+void apply_drive_option(std::string_view arg, const char* value, DriveRequest& r) {
+  RecordOptions& o = r.options;
+  if (arg == "--no-shadows")
+    o.conditions.shadows = false;
+  else if (arg == "--no-render")
+    o.render = false;
+  else if (arg == "--scenario")
+    r.scenario_name = value;
+  else if (arg == "--route")
+    r.route_file = value;
+  else if (arg == "--out")
+    r.out_dir = value;
+  else if (arg == "--seed")
+    o.seed = parse_whole(arg, value);
+  else if (arg == "--speed")
+    r.speed = parse_number(arg, value);
+  else if (arg == "--fps")
+    o.drive.fps = parse_number(arg, value);
+  else if (arg == "--laps")
+    r.laps = parse_whole(arg, value);
+  else if (arg == "--camera")
+    r.camera_file = value;
+  else if (arg == "--max-frames")
+    o.max_frames = parse_whole(arg, value);
+  else if (arg == "--occluders")
+    o.conditions.occluder_probability = parse_number(arg, value);
+  else if (arg == "--noise")
+    o.conditions.noise_sigma = parse_number(arg, value);
+  else if (arg == "--wear")
+    o.conditions.paint_wear = parse_number(arg, value);
+  else if (arg == "--drift")
+    r.drift = parse_number(arg, value);
+  else if (arg == "--cover-lens")
+    apply_cover_lens(arg, value, o);
+  else if (arg == "--light")
+    apply_light(value, o.conditions);
+  else if (arg == "--class-weights")
+    apply_class_weights(value, r.world);
+}
+
+// Refuses a drive request whose values are out of range, before the drive.
+void check_drive_request(const DriveRequest& r) {
+  const RecordOptions& o = r.options;
+  if (r.out_dir.empty()) fail("--out DIR is required (see --help)");
+  check_out_dir(r.out_dir);
+  if (!r.scenario_name.empty() && !r.route_file.empty()) fail("give --scenario or --route, not both");
+  if (r.speed && !(*r.speed >= 0.1 && *r.speed <= 100)) fail("--speed must be in 0.1..100 m/s");
+  if (!(o.drive.fps >= 1 && o.drive.fps <= 1000)) fail("--fps must be in 1..1000");
+  if (r.laps && (*r.laps == 0 || *r.laps > 1000)) fail("--laps must be in 1..1000");
+  if (o.conditions.paint_wear < 0 || o.conditions.paint_wear > 1) fail("--wear must be in 0..1");
+  if (o.conditions.occluder_probability < 0 || o.conditions.occluder_probability > 1)
     fail("--occluders must be in 0..1");
-  if (options.conditions.noise_sigma < 0 || options.conditions.noise_sigma > 100)
-    fail("--noise must be in 0..100");
-  if (drift < 0 || drift > 100) fail("--drift must be in 0..100");
-  // The same errors drive the CAN odometry and the legacy dead-reckoned pose.
+  if (o.conditions.noise_sigma < 0 || o.conditions.noise_sigma > 100) fail("--noise must be in 0..100");
+  if (r.drift < 0 || r.drift > 100) fail("--drift must be in 0..100");
+}
+
+// The same errors drive the CAN odometry and the legacy dead-reckoned pose.
+void scale_odometry_errors(double drift, RecordOptions& options) {
   options.drive.speed_scale_error *= drift;
   options.drive.yaw_rate_bias_dps *= drift;
   options.drive.yaw_rate_noise_dps *= drift;
@@ -208,52 +267,74 @@ int drive(int argc, char** argv) {
   options.odometry.speed_noise_mps *= drift;
   options.odometry.yaw_rate_bias_dps *= drift;
   options.odometry.yaw_rate_noise_dps *= drift;
+}
 
-  std::optional<Scenario> scenario;
-  if (!route_file.empty()) {
-    std::string error;
-    auto route = load_route(route_file, error);
-    if (!route) fail(error);
+// The scenario a drive request names: a route file's, or a built-in one.
+// A route sets the speed when none was given and its own is plausible.
+Scenario scenario_for(DriveRequest& r) {
+  if (!r.route_file.empty()) {
+    Result<Route> route = load_route(r.route_file);
+    if (!route) fail(route.message());
     const double route_speed = route->average_speed_mps();
-    if (!speed && route_speed > 0.5 && route_speed <= 100) speed = route_speed;
-    scenario = make_route_scenario(route_file, std::move(route->path), options.seed, world);
-    if (laps) fail("--laps applies to built-in scenarios only");
-  } else {
-    if (scenario_name.empty()) scenario_name = "loop";
-    scenario = make_scenario(scenario_name, options.seed, world);
-    if (!scenario) fail("unknown scenario '" + scenario_name + "' (see: markloop-sim list)");
-    if (laps) scenario->laps = static_cast<int>(*laps);
+    if (!r.speed && route_speed > 0.5 && route_speed <= 100) r.speed = route_speed;
+    Scenario scenario = make_route_scenario(r.route_file, std::move(route->path), r.options.seed, r.world);
+    if (r.laps) fail("--laps applies to built-in scenarios only");
+    return scenario;
   }
-  options.drive.speed_mps = speed.value_or(10.0);
-  options.out_dir = out_dir;
-  options.conditions.seed = options.seed * 0x9E3779B97F4A7C15ULL + 0xC0D1;
-  const perception::CameraModel camera = camera_from(camera_file);
+  if (r.scenario_name.empty()) r.scenario_name = "loop";
+  std::optional<Scenario> scenario = make_scenario(r.scenario_name, r.options.seed, r.world);
+  if (!scenario) fail("unknown scenario '" + r.scenario_name + "' (see: markloop-sim list)");
+  if (r.laps) scenario->laps = static_cast<int>(*r.laps);
+  return std::move(*scenario);
+}
 
-  RecordSummary summary;
-  std::string error;
-  if (!record_drive(*scenario, camera, options, summary, error)) tools::fail_run(error);
+void print_drive_summary(const Scenario& scenario, const RecordOptions& options,
+                         const RecordSummary& summary) {
   std::printf(
       "markloop-sim: %s (%s): %zu frames, %zu markings in the world, %zu detections, "
       "%zu odometry frames",
-      scenario->name.c_str(), scenario->description.c_str(), summary.frames, scenario->markings.size(),
+      scenario.name.c_str(), scenario.description.c_str(), summary.frames, scenario.markings.size(),
       summary.detections, summary.odometry_messages);
   if (options.render && summary.frames > 0)
     std::printf(", %zu visible markings, %.1f ms per rendered frame", summary.visible_rows,
                 1000.0 * summary.render_seconds / static_cast<double>(summary.frames));
-  std::printf(" -> %s\n", out_dir.c_str());
-  return 0;
+  std::printf(" -> %s\n", options.out_dir.c_str());
+}
+
+int drive(int argc, char** argv) {
+  const ParsedArgs args = parse_command(argc, argv, kDriveOptions);
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    return kExitOk;
+  }
+  DriveRequest request;
+  for (const ParsedArgs::Given& given : args.given())
+    apply_drive_option(given.name, text_of(given.value), request);
+  check_drive_request(request);
+  RecordOptions& options = request.options;
+  scale_odometry_errors(request.drift, options);
+  const Scenario scenario = scenario_for(request);
+  options.drive.speed_mps = request.speed.value_or(10.0);
+  options.out_dir = request.out_dir;
+  options.conditions.seed = options.seed * 0x9E3779B97F4A7C15ULL + 0xC0D1;
+  const perception::CameraModel camera = camera_from(request.camera_file);
+
+  const Result<RecordSummary> summary = record_drive(scenario, camera, options);
+  if (!summary) tools::fail_run(summary.message());
+  print_drive_summary(scenario, options, *summary);
+  return kExitOk;
 }
 
 int training_set(int argc, char** argv) {
+  const ParsedArgs args = parse_command(argc, argv, kTrainingSetOptions);
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    return kExitOk;
+  }
   TrainingSetOptions options;
   std::string camera_file;
-  for (int i = 2; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    const char* value = option_value(argc, argv, i, {"--out", "--seed", "--frames", "--camera"});
+  for (const auto& [arg, given] : args.given()) {
+    const char* value = text_of(given);
     if (arg == "--out")
       options.out_dir = value;
     else if (arg == "--seed")
@@ -267,24 +348,24 @@ int training_set(int argc, char** argv) {
   check_out_dir(options.out_dir);
   if (options.frames == 0) fail("--frames must be at least 1");
   const perception::CameraModel camera = camera_from(camera_file);
-  std::size_t annotations = 0;
-  std::string error;
-  if (!record_training_set(camera, options, annotations, error)) tools::fail_run(error);
+  const Result<std::size_t> annotations = record_training_set(camera, options);
+  if (!annotations) tools::fail_run(annotations.message());
   std::printf("markloop-sim: training set: %zu images, %zu annotated markings -> %s\n", options.frames,
-              annotations, options.out_dir.c_str());
-  return 0;
+              *annotations, options.out_dir.c_str());
+  return kExitOk;
 }
 
-int live(int argc, char** argv) {
+v4l2::PixelFormat pixel_format_from(const char* value) {
+  const std::string_view f = value;
+  if (f == "grey") return v4l2::PixelFormat::Grey;
+  if (f == "yuyv") return v4l2::PixelFormat::Yuyv;
+  fail(std::string("--format: unknown '") + value + "' (grey, yuyv)");
+}
+
+LiveOptions live_options_from(const ParsedArgs& args) {
   LiveOptions options;
-  for (int i = 2; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    const char* value =
-        option_value(argc, argv, i, {"--from", "--video", "--output", "--can", "--max-frames", "--format"});
+  for (const auto& [arg, given] : args.given()) {
+    const char* value = text_of(given);
     if (arg == "--from")
       options.drive_dir = value;
     else if (arg == "--video")
@@ -295,21 +376,23 @@ int live(int argc, char** argv) {
       options.can_interface = value;
     else if (arg == "--max-frames")
       options.max_frames = parse_whole(arg, value);
-    else if (arg == "--format") {
-      const std::string_view f = value;
-      if (f == "grey")
-        options.format = v4l2::PixelFormat::Grey;
-      else if (f == "yuyv")
-        options.format = v4l2::PixelFormat::Yuyv;
-      else
-        fail(std::string("--format: unknown '") + value + "' (grey, yuyv)");
-    }
+    else if (arg == "--format")
+      options.format = pixel_format_from(value);
   }
   if (options.drive_dir.empty()) fail("--from DIR is required (see --help)");
   if (options.video_device.empty()) fail("--video DEVICE is required (see --help)");
-  LiveCounters counters;
-  std::string error;
-  if (!run_live(options, counters, error)) fail(error);
+  return options;
+}
+
+int live(int argc, char** argv) {
+  const ParsedArgs args = parse_command(argc, argv, kLiveOptions);
+  if (args.help()) {
+    std::fputs(kUsage, stdout);
+    return kExitOk;
+  }
+  const Result<LiveCounters> played = run_live(live_options_from(args));
+  if (!played) fail(played.message());
+  const LiveCounters& counters = *played;
   std::printf(
       "markloop-sim: live: %llu frames sent (%llu failed), %llu CAN frames sent (%llu failed), "
       "%llu events late by more than 5 ms, worst %.2f ms%s\n",
@@ -319,7 +402,15 @@ int live(int argc, char** argv) {
       static_cast<unsigned long long>(counters.can_errors),
       static_cast<unsigned long long>(counters.late_events), counters.max_lateness_ms,
       counters.interrupted ? " (interrupted)" : "");
-  return counters.frame_errors == 0 && counters.can_errors == 0 ? 0 : 1;
+  return counters.frame_errors == 0 && counters.can_errors == 0 ? kExitOk : kExitOutputFailed;
+}
+
+int list_scenarios() {
+  for (const auto& name : scenario_names()) {
+    const auto s = make_scenario(name, 1);
+    std::printf("%-9s %s\n", name.c_str(), s->description.c_str());
+  }
+  return kExitOk;
 }
 
 int run(int argc, char** argv) {
@@ -327,20 +418,14 @@ int run(int argc, char** argv) {
   if (command == "drive") return drive(argc, argv);
   if (command == "training-set") return training_set(argc, argv);
   if (command == "live") return live(argc, argv);
-  if (command == "list") {
-    for (const auto& name : scenario_names()) {
-      const auto s = make_scenario(name, 1);
-      std::printf("%-9s %s\n", name.c_str(), s->description.c_str());
-    }
-    return 0;
-  }
+  if (command == "list") return list_scenarios();
   if (command == "--help" || command == "-h" || command == "help") {
     std::fputs(kUsage, stdout);
-    return 0;
+    return kExitOk;
   }
   if (command.empty()) {
     std::fputs(kUsage, stderr);
-    return 2;
+    return kExitBadInput;
   }
   fail("unknown command '" + std::string(command) + "' (drive, training-set, live or list; see --help)");
 }

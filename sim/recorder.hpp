@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 
+#include "app/common/result.hpp"
 #include "app/perception/camera_model.hpp"
 #include "sim/drive.hpp"
 #include "sim/render.hpp"
@@ -53,9 +54,9 @@ struct RecordSummary {
 // `first`; later days have their own sensor seed, no sun and dusk light.
 Conditions conditions_for_day(const Conditions& first, int day);
 
-// Returns false with `error` when an output cannot be written.
-bool record_drive(const Scenario& scenario, const perception::CameraModel& camera,
-                  const RecordOptions& options, RecordSummary& summary, std::string& error);
+// What was written, or an error when an output cannot be written.
+Result<RecordSummary> record_drive(const Scenario& scenario, const perception::CameraModel& camera,
+                                   const RecordOptions& options);
 
 struct TrainingSetOptions {
   std::string out_dir;
@@ -70,7 +71,9 @@ struct TrainingSetOptions {
 // seeds below 2^32), a world of its own with denser markings of every class
 // in equal shares, and conditions drawn at random per frame.
 inline constexpr std::uint64_t kTrainingSeedOffset = std::uint64_t{1} << 32;
-bool record_training_set(const perception::CameraModel& camera, const TrainingSetOptions& options,
-                         std::size_t& annotations, std::string& error);
+// The count of annotated markings, or an error when an output cannot be
+// written.
+Result<std::size_t> record_training_set(const perception::CameraModel& camera,
+                                        const TrainingSetOptions& options);
 
 }  // namespace markloop::sim

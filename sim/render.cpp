@@ -118,105 +118,123 @@ cv::Mat road_text(const char* text, const Canvas& canvas) {
   return out;
 }
 
+// Left (+1) or right (-1) turn, as US streets paint it: a shaft on the
+// other side that bends at its far end into an arm across the lane, the
+// head pointing to the turn's side.
+void draw_turn_arrow(Canvas& c, double m) {
+  const double l = c.length / 2, w = c.width / 2;
+  const double shaft = -m * (w - 0.35);
+  c.bar({-l, shaft}, {l - 1.0, shaft}, 0.3);
+  c.bar({l - 1.05, shaft}, {l - 0.45, shaft + 0.5 * m}, 0.3);
+  c.arrow({l - 0.5, shaft + 0.45 * m}, {l - 0.45, m * w}, 0.3, 0.7, 0.8);
+}
+
+// Forward and left (+1) or right (-1), as US streets paint it: a short
+// through arrow, and an arm that leaves its shaft low and bends to the side,
+// its head across.
+void draw_forward_and_turn_arrow(Canvas& c, double m) {
+  const double l = c.length / 2, w = c.width / 2;
+  const double shaft = -m * (w - 0.4);
+  c.arrow({-l, shaft}, {l, shaft}, 0.3, 0.8, 0.8);
+  c.bar({-l + 0.3, shaft}, {-l + 0.8, shaft + 0.5 * m}, 0.3);
+  c.arrow({-l + 0.75, shaft + 0.45 * m}, {-l + 0.8, m * w}, 0.3, 0.6, 0.7);
+}
+
+// Bicycle with rider, painted upright to the driver: wheels side by side
+// across the lane.
+void draw_bicycle(Canvas& c) {
+  cv::Mat side(120, 220, CV_8U, cv::Scalar(0));
+  const auto aa = cv::LINE_AA;
+  cv::circle(side, {50, 80}, 34, cv::Scalar(255), 8, aa);
+  cv::circle(side, {170, 80}, 34, cv::Scalar(255), 8, aa);
+  cv::line(side, {50, 80}, {95, 40}, cv::Scalar(255), 8, aa);
+  cv::line(side, {95, 40}, {150, 40}, cv::Scalar(255), 8, aa);
+  cv::line(side, {150, 40}, {170, 80}, cv::Scalar(255), 8, aa);
+  cv::line(side, {95, 40}, {110, 80}, cv::Scalar(255), 8, aa);
+  cv::line(side, {50, 80}, {110, 80}, cv::Scalar(255), 8, aa);
+  cv::line(side, {110, 80}, {150, 40}, cv::Scalar(255), 8, aa);
+  cv::circle(side, {118, 12}, 10, cv::Scalar(255), cv::FILLED, aa);
+  cv::line(side, {92, 30}, {145, 25}, cv::Scalar(255), 6, aa);
+  cv::resize(side, c.image, c.image.size(), 0, 0, cv::INTER_AREA);
+}
+
+// Railway crossing (MUTCD): a large X, an R in the triangle either side.
+void draw_railway_crossing(Canvas& c) {
+  const double l = c.length / 2, w = c.width / 2, texel = c.texel;
+  const double stroke = 0.4, r_length = 1.1, r_width = 0.55, r_inner = 0.7;
+  c.bar({-l, -w}, {l, w}, stroke);
+  c.bar({-l, w}, {l, -w}, stroke);
+  Canvas letter(r_length, r_width, texel);
+  const cv::Mat r = road_text("R", letter);
+  const int rows = r.rows, cols = r.cols;
+  const int row0 = static_cast<int>(std::lround((l - r_length / 2) / texel));
+  for (const double left : {r_inner + r_width, -r_inner}) {  // the letter's left edge
+    const int col0 = static_cast<int>(std::lround((w - left) / texel));
+    if (row0 < 0 || col0 < 0 || row0 + rows > c.image.rows || col0 + cols > c.image.cols) continue;
+    cv::Mat area = c.image(cv::Rect(col0, row0, cols, rows));
+    cv::max(area, r, area);
+  }
+}
+
+// Diamond outline.
+void draw_diamond(Canvas& c) {
+  const double l = c.length / 2, w = c.width / 2;
+  const double t = 0.15;
+  c.bar({-l + 0.1, 0}, {0, w - t}, t);
+  c.bar({0, w - t}, {l - 0.1, 0}, t);
+  c.bar({l - 0.1, 0}, {0, -w + t}, t);
+  c.bar({0, -w + t}, {-l + 0.1, 0}, t);
+}
+
+// Crosswalk: 0.5 m stripes every metre across the road.
+void draw_crosswalk(Canvas& c) {
+  const double l = c.length / 2, w = c.width / 2;
+  for (double b = -w + 0.25; b + 0.25 <= w + 1e-6; b += 1.0)
+    c.polygon({{-l, b + 0.25}, {l, b + 0.25}, {l, b - 0.25}, {-l, b - 0.25}});
+}
+
+// The painted words, by label; nullptr for a marking that is no word.
+const char* road_word(Label label) {
+  switch (label) {
+    case 5:
+      return "STOP";
+    case 6:
+      return "PED";
+    case 7:
+      return "XING";
+    case 10:
+      return "25";
+    case 11:
+      return "35";
+    case 12:
+      return "40";
+    default:
+      return nullptr;
+  }
+}
+
 // bike_word: the bike marking drawn as the word BIKE instead of the bicycle.
 cv::Mat draw_class(Label label, bool bike_word, double length, double width, double texel) {
   Canvas c(length, width, texel);
-  const double l = length / 2, w = width / 2;
-  switch (label) {
-    case 0:  // forward
-      c.arrow({-l, 0}, {l, 0}, 0.3, 2.2, 0.9);
-      break;
-    case 1:    // left turn, as US streets paint it: a shaft on the right that bends at
-    case 2: {  // its far end into an arm across the lane, the head pointing left
-      const double m = label == 1 ? 1.0 : -1.0;  // the arm's side: +1 left
-      const double shaft = -m * (w - 0.35);
-      c.bar({-l, shaft}, {l - 1.0, shaft}, 0.3);
-      c.bar({l - 1.05, shaft}, {l - 0.45, shaft + 0.5 * m}, 0.3);
-      c.arrow({l - 0.5, shaft + 0.45 * m}, {l - 0.45, m * w}, 0.3, 0.7, 0.8);
-      break;
-    }
-    case 3:    // forward & left, as US streets paint it: a short through arrow, and
-    case 4: {  // an arm that leaves its shaft low and bends to the side, its head across
-      const double m = label == 3 ? 1.0 : -1.0;  // the arm's side: +1 left
-      const double shaft = -m * (w - 0.4);
-      c.arrow({-l, shaft}, {l, shaft}, 0.3, 0.8, 0.8);
-      c.bar({-l + 0.3, shaft}, {-l + 0.8, shaft + 0.5 * m}, 0.3);
-      c.arrow({-l + 0.75, shaft + 0.45 * m}, {-l + 0.8, m * w}, 0.3, 0.6, 0.7);
-      break;
-    }
-    case 5:
-      c.image = road_text("STOP", c);
-      break;
-    case 6:
-      c.image = road_text("PED", c);
-      break;
-    case 7:
-      c.image = road_text("XING", c);
-      break;
-    case 8: {
-      if (bike_word) {  // the word a bike lane carries, as in the real images
-        c.image = road_text("BIKE", c);
-        break;
-      }
-      // bicycle with rider, painted upright to the driver: wheels side by side across the lane
-      cv::Mat side(120, 220, CV_8U, cv::Scalar(0));
-      const auto aa = cv::LINE_AA;
-      cv::circle(side, {50, 80}, 34, cv::Scalar(255), 8, aa);
-      cv::circle(side, {170, 80}, 34, cv::Scalar(255), 8, aa);
-      cv::line(side, {50, 80}, {95, 40}, cv::Scalar(255), 8, aa);
-      cv::line(side, {95, 40}, {150, 40}, cv::Scalar(255), 8, aa);
-      cv::line(side, {150, 40}, {170, 80}, cv::Scalar(255), 8, aa);
-      cv::line(side, {95, 40}, {110, 80}, cv::Scalar(255), 8, aa);
-      cv::line(side, {50, 80}, {110, 80}, cv::Scalar(255), 8, aa);
-      cv::line(side, {110, 80}, {150, 40}, cv::Scalar(255), 8, aa);
-      cv::circle(side, {118, 12}, 10, cv::Scalar(255), cv::FILLED, aa);
-      cv::line(side, {92, 30}, {145, 25}, cv::Scalar(255), 6, aa);
-      cv::resize(side, c.image, c.image.size(), 0, 0, cv::INTER_AREA);
-      break;
-    }
-    case 9: {  // railway crossing (MUTCD): a large X, an R in the triangle either side
-      const double stroke = 0.4, r_length = 1.1, r_width = 0.55, r_inner = 0.7;
-      c.bar({-l, -w}, {l, w}, stroke);
-      c.bar({-l, w}, {l, -w}, stroke);
-      Canvas letter(r_length, r_width, texel);
-      const cv::Mat r = road_text("R", letter);
-      const int rows = r.rows, cols = r.cols;
-      const int row0 = static_cast<int>(std::lround((l - r_length / 2) / texel));
-      for (const double left : {r_inner + r_width, -r_inner}) {  // the letter's left edge
-        const int col0 = static_cast<int>(std::lround((w - left) / texel));
-        if (row0 < 0 || col0 < 0 || row0 + rows > c.image.rows || col0 + cols > c.image.cols) continue;
-        cv::Mat area = c.image(cv::Rect(col0, row0, cols, rows));
-        cv::max(area, r, area);
-      }
-      break;
-    }
-    case 10:
-      c.image = road_text("25", c);
-      break;
-    case 11:
-      c.image = road_text("35", c);
-      break;
-    case 12:
-      c.image = road_text("40", c);
-      break;
-    case 13: {  // diamond outline
-      const double t = 0.15;
-      c.bar({-l + 0.1, 0}, {0, w - t}, t);
-      c.bar({0, w - t}, {l - 0.1, 0}, t);
-      c.bar({l - 0.1, 0}, {0, -w + t}, t);
-      c.bar({0, -w + t}, {-l + 0.1, 0}, t);
-      break;
-    }
-    case 14:
-      c.image.setTo(cv::Scalar(255));
-      break;  // stop line
-    case 15:  // crosswalk: 0.5 m stripes every metre across the road
-      for (double b = -w + 0.25; b + 0.25 <= w + 1e-6; b += 1.0)
-        c.polygon({{-l, b + 0.25}, {l, b + 0.25}, {l, b - 0.25}, {-l, b - 0.25}});
-      break;
-    default:
-      c.image.setTo(cv::Scalar(255));
-      break;
+  const char* word = label == kBikeLabel && bike_word ? "BIKE" : road_word(label);
+  if (word != nullptr) {
+    c.image = road_text(word, c);
+  } else if (label == 0) {  // forward
+    c.arrow({-length / 2, 0}, {length / 2, 0}, 0.3, 2.2, 0.9);
+  } else if (label == 1 || label == 2) {  // left, right turn
+    draw_turn_arrow(c, label == 1 ? 1.0 : -1.0);
+  } else if (label == 3 || label == 4) {  // forward & left, forward & right
+    draw_forward_and_turn_arrow(c, label == 3 ? 1.0 : -1.0);
+  } else if (label == kBikeLabel) {
+    draw_bicycle(c);
+  } else if (label == 9) {
+    draw_railway_crossing(c);
+  } else if (label == 13) {
+    draw_diamond(c);
+  } else if (label == 15) {
+    draw_crosswalk(c);
+  } else {  // the stop line (14), and any other class a filled footprint
+    c.image.setTo(cv::Scalar(255));
   }
   cv::Mat f;
   c.image.convertTo(f, CV_32F, 1.0 / 255.0);
@@ -521,15 +539,20 @@ void Renderer::paint_marking(const Pose2& local, const Marking& marking, const P
 void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& conditions, std::uint64_t frame,
                       std::span<const Occluder> occluders, cv::Mat& image) {
   ++counters_.frames;
-  const Light light = light_of(conditions.light);
-  const bool wet = conditions.light == Illumination::kWetGlare;
-  const bool night = conditions.light == Illumination::kNight;
-  const bool sunny = conditions.light == Illumination::kDay || wet;
-  const double pc = std::cos(pose.yaw), ps = std::sin(pose.yaw);
   const Pose2 to_vehicle = inverse(pose);
-  const std::size_t pixels = road_.size();
+  cover_road(pose, to_vehicle);
+  cache_light(conditions.light);
+  shade_ground(pose, conditions);
+  paint_lines_and_markings(pose, to_vehicle, conditions.paint_wear);
+  shade_image(pose, conditions);
+  draw_vehicles(occluders, conditions.light);
+  blur_motion(speed_mps, conditions);
+  expose(conditions, frame, image);
+}
 
-  // 1. Road surface coverage.
+// 1. Road surface coverage; near_ keeps the strips near the view for step 3.
+void Renderer::cover_road(const Pose2& pose, const Pose2& to_vehicle) {
+  const double pc = std::cos(pose.yaw), ps = std::sin(pose.yaw);
   std::fill(road_.begin(), road_.end(), 0.0F);
   near_.clear();
   for_each_near(pose.x + pc * kStripRange / 2, pose.y + ps * kStripRange / 2, kStripRange / 2 + cell_m_,
@@ -541,23 +564,35 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
     if (local.x < -5.0 || local.x > kStripRange) continue;
     paint_strip(local, strip, pose, 0.0);
   }
+}
 
-  // 2. Base texture and light, per ground pixel.
-  if (cached_light_ != static_cast<int>(conditions.light)) {
-    cached_light_ = static_cast<int>(conditions.light);
-    for (std::size_t i = 0; i < pixels; ++i) {
-      const float gx = ground_x_[i];
-      if (std::isnan(gx)) continue;
-      float l = light.gain;
-      if (night) {
-        // Headlights: a cone ahead, falling off with distance.
-        const float spread = ground_y_[i] / (0.45F * gx + 1.2F);
-        l = 0.03F + 1.5F * std::exp(-spread * spread) / (1.0F + (gx / 16.0F) * (gx / 16.0F));
-      }
-      base_light_[i] = l;
-      haze_[i] = 1.0F - std::exp(-gx / light.haze_distance);
+// 2a. Light and haze per ground pixel, recomputed when the light changes.
+void Renderer::cache_light(Illumination illumination) {
+  if (cached_light_ == static_cast<int>(illumination)) return;
+  cached_light_ = static_cast<int>(illumination);
+  const Light light = light_of(illumination);
+  const bool night = illumination == Illumination::kNight;
+  const std::size_t pixels = road_.size();
+  for (std::size_t i = 0; i < pixels; ++i) {
+    const float gx = ground_x_[i];
+    if (std::isnan(gx)) continue;
+    float l = light.gain;
+    if (night) {
+      // Headlights: a cone ahead, falling off with distance.
+      const float spread = ground_y_[i] / (0.45F * gx + 1.2F);
+      l = 0.03F + 1.5F * std::exp(-spread * spread) / (1.0F + (gx / 16.0F) * (gx / 16.0F));
     }
+    base_light_[i] = l;
+    haze_[i] = 1.0F - std::exp(-gx / light.haze_distance);
   }
+}
+
+// 2b. Base texture and light, per ground pixel.
+void Renderer::shade_ground(const Pose2& pose, const Conditions& conditions) {
+  const bool wet = conditions.light == Illumination::kWetGlare;
+  const bool sunny = conditions.light == Illumination::kDay || wet;
+  const double pc = std::cos(pose.yaw), ps = std::sin(pose.yaw);
+  const std::size_t pixels = road_.size();
   const bool cast_shadows = sunny && conditions.shadows;
   for (std::size_t i = 0; i < pixels; ++i) {
     const float gx = ground_x_[i];
@@ -591,14 +626,17 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
     }
     light_[i] = l;
   }
+}
 
-  // 3. Lines and markings.
+// 3. Lines and markings.
+void Renderer::paint_lines_and_markings(const Pose2& pose, const Pose2& to_vehicle, double wear) {
+  const double pc = std::cos(pose.yaw), ps = std::sin(pose.yaw);
   for (const std::uint32_t i : near_) {
     const Strip& strip = scenario_.strips[i];
     if (strip.kind == StripKind::kRoad) continue;
     const Pose2 local = compose(to_vehicle, Pose2{strip.x, strip.y, strip.heading});
     if (local.x < -2.0 || local.x > kStripRange) continue;
-    paint_strip(local, strip, pose, conditions.paint_wear);
+    paint_strip(local, strip, pose, wear);
   }
   near_.clear();
   for_each_near(pose.x + pc * kMarkingRange / 2, pose.y + ps * kMarkingRange / 2, kMarkingRange / 2 + cell_m_,
@@ -607,10 +645,15 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
     const Marking& m = scenario_.markings[i];
     const Pose2 local = compose(to_vehicle, Pose2{m.x, m.y, m.heading});
     if (local.x < -8.0 || local.x > kMarkingRange) continue;
-    paint_marking(local, m, pose, conditions.paint_wear);
+    paint_marking(local, m, pose, wear);
   }
+}
 
-  // 4. Light, haze, glare and the sky.
+// 4. Light, haze, glare and the sky.
+void Renderer::shade_image(const Pose2& pose, const Conditions& conditions) {
+  const Light light = light_of(conditions.light);
+  const bool wet = conditions.light == Illumination::kWetGlare;
+  const bool night = conditions.light == Illumination::kNight;
   const bool pinhole = camera_.is_pinhole();
   const double fx = pinhole ? camera_.intrinsics().fx : width_ / 2.0;
   const double cx = pinhole ? camera_.intrinsics().cx : width_ / 2.0;
@@ -646,8 +689,12 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
       out[c] = v + (light.sky_horizon - v) * haze_[i];
     }
   }
+}
 
-  // 5. Vehicles ahead hide the road.
+// 5. Vehicles ahead hide the road.
+void Renderer::draw_vehicles(std::span<const Occluder> occluders, Illumination illumination) {
+  const Light light = light_of(illumination);
+  const bool night = illumination == Illumination::kNight;
   for (const Occluder& o : occluders) {
     Eigen::Vector2d left, right;
     if (!camera_.ground_to_image({o.ahead_m, o.left_m + o.width_m / 2}, left) ||
@@ -669,8 +716,10 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
     cv::rectangle(shaded_, cv::Rect(body.x + body.width * 6 / 7 - 2, body.y + bh / 2, body.width / 7, bh / 8),
                   cv::Scalar(lamp), cv::FILLED);
   }
+}
 
-  // 6. Motion blur: the near road slides down the image while exposed.
+// 6. Motion blur: the near road slides down the image while exposed.
+void Renderer::blur_motion(double speed_mps, const Conditions& conditions) {
   const double travel = speed_mps * conditions.exposure_s;  // metres during exposure
   const int first_near_row = height_ / 2;
   const std::size_t centre = static_cast<std::size_t>(height_ - 1) * width_ + width_ / 2;
@@ -679,8 +728,11 @@ void Renderer::render(const Pose2& pose, double speed_mps, const Conditions& con
     cv::Mat near_rows = shaded_.rowRange(first_near_row, height_);
     cv::blur(near_rows, near_rows, {1, std::min(blur, 9)}, {-1, -1}, cv::BORDER_REPLICATE);
   }
+}
 
-  // 7. Sensor noise (more gain in low light, more noise) and quantisation.
+// 7. Sensor noise (more gain in low light, more noise) and quantisation.
+void Renderer::expose(const Conditions& conditions, std::uint64_t frame, cv::Mat& image) {
+  const bool night = conditions.light == Illumination::kNight;
   if (image.rows != height_ || image.cols != width_ || image.type() != CV_8UC1)
     image.create(height_, width_, CV_8UC1);
   const float sigma =

@@ -106,6 +106,15 @@ class Renderer {
   bool image_box(const Pose2& local, double half_length, double half_width, cv::Rect& box) const;
   void paint_strip(const Pose2& local, const Strip& strip, const Pose2& pose, double wear);
   void paint_marking(const Pose2& local, const Marking& marking, const Pose2& pose, double wear);
+  // The steps of render(), in order.
+  void cover_road(const Pose2& pose, const Pose2& to_vehicle);
+  void cache_light(Illumination illumination);
+  void shade_ground(const Pose2& pose, const Conditions& conditions);
+  void paint_lines_and_markings(const Pose2& pose, const Pose2& to_vehicle, double wear);
+  void shade_image(const Pose2& pose, const Conditions& conditions);
+  void draw_vehicles(std::span<const Occluder> occluders, Illumination illumination);
+  void blur_motion(double speed_mps, const Conditions& conditions);
+  void expose(const Conditions& conditions, std::uint64_t frame, cv::Mat& image);
 
   const perception::CameraModel& camera_;
   const Scenario& scenario_;

@@ -7,6 +7,7 @@
 #include <string_view>
 #include <vector>
 
+#include "app/common/result.hpp"
 #include "app/tools/common/tool_files.hpp"
 
 namespace markloop::sim {
@@ -65,73 +66,77 @@ std::string absurd_pose(const std::array<double, 2>& point, const std::array<dou
   return {};
 }
 
-}  // namespace
+// The pose lines of a route file: the points on the ground, the format
+// and the time they span.
+struct RoutePoints {
+  std::vector<std::array<double, 2>> points;
+  RouteFormat format = RouteFormat::kKitti;
+  double first_t = 0.0, last_t = 0.0;
+};
 
-std::optional<Route> load_route(const std::string& path, std::string& error) {
-  std::string text;
-  if (!tools::read_input(path, kMaxRouteBytes, "a route file", text, error)) return std::nullopt;
-  Route route;
+// Reads one pose line into `route`; `length` is the route so far. Returns
+// what is wrong with the line, or nothing.
+std::string add_pose(const std::vector<double>& numbers, std::size_t& expected, RoutePoints& route,
+                     double& length) {
+  if (expected == 0) {
+    if (numbers.size() != 12 && numbers.size() != 8)
+      return "expected 12 numbers (KITTI 3x4 pose) or 8 (TUM: t x y z qx qy qz qw), found " +
+             std::to_string(numbers.size());
+    expected = numbers.size();
+    route.format = expected == 12 ? RouteFormat::kKitti : RouteFormat::kTum;
+  } else if (numbers.size() != expected) {
+    return std::string("expected ") + std::to_string(expected) + " numbers like the first pose (" +
+           (expected == 12 ? "KITTI" : "TUM") + "), found " + std::to_string(numbers.size());
+  }
+  std::array<double, 2> point{};
+  if (route.format == RouteFormat::kKitti) {
+    point = {numbers[11], -numbers[3]};
+  } else {
+    const double t = numbers[0];
+    if (!route.points.empty() && !(t > route.last_t))
+      return "timestamp " + std::to_string(t) + " does not increase";
+    if (route.points.empty()) route.first_t = t;
+    route.last_t = t;
+    // The orientation is not used, but a zero quaternion is no rotation:
+    // the line is not a pose.
+    const double norm_sq =
+        numbers[4] * numbers[4] + numbers[5] * numbers[5] + numbers[6] * numbers[6] + numbers[7] * numbers[7];
+    if (!(norm_sq > 1e-12)) return "quaternion qx qy qz qw is zero: not a rotation";
+    point = {numbers[1], numbers[2]};
+  }
+  if (std::string absurd = absurd_pose(point, route.points.empty() ? nullptr : &route.points.back(), length);
+      !absurd.empty())
+    return absurd;
+  route.points.push_back(point);
+  return {};
+}
+
+// Every pose line of `text` (the file `path`), or "FILE:LINE: what is wrong".
+Result<RoutePoints> read_poses(const std::string& path, const std::string& text) {
+  RoutePoints route;
   std::size_t expected = 0;
   std::vector<double> numbers;
-  std::vector<std::array<double, 2>> points;
-  double first_t = 0.0, last_t = 0.0, length = 0.0;
+  double length = 0.0;
   std::string bad;
   tools::Lines lines(text);
   std::string_view line;
-  const auto fail = [&](const std::string& what) {
-    error = path + ":" + std::to_string(lines.number()) + ": " + what;
-    return std::nullopt;
+  const auto at_line = [&](const std::string& what) {
+    return error(path + ":" + std::to_string(lines.number()) + ": " + what);
   };
   while (lines.next(line)) {
     const std::size_t first = line.find_first_not_of(" \t\r");
     if (first == std::string_view::npos || line[first] == '#') continue;
-    if (!parse_numbers(line, numbers, bad)) return fail("'" + bad + "' is not a number");
-    if (expected == 0) {
-      if (numbers.size() != 12 && numbers.size() != 8)
-        return fail("expected 12 numbers (KITTI 3x4 pose) or 8 (TUM: t x y z qx qy qz qw), found " +
-                    std::to_string(numbers.size()));
-      expected = numbers.size();
-      route.format = expected == 12 ? RouteFormat::kKitti : RouteFormat::kTum;
-    } else if (numbers.size() != expected) {
-      return fail(std::string("expected ") + std::to_string(expected) + " numbers like the first pose (" +
-                  (expected == 12 ? "KITTI" : "TUM") + "), found " + std::to_string(numbers.size()));
-    }
-    std::array<double, 2> point{};
-    if (route.format == RouteFormat::kKitti) {
-      point = {numbers[11], -numbers[3]};
-    } else {
-      const double t = numbers[0];
-      if (route.poses > 0 && !(t > last_t))
-        return fail("timestamp " + std::to_string(t) + " does not increase");
-      if (route.poses == 0) first_t = t;
-      last_t = t;
-      // The orientation is not used, but a zero quaternion is no rotation:
-      // the line is not a pose.
-      const double norm_sq = numbers[4] * numbers[4] + numbers[5] * numbers[5] + numbers[6] * numbers[6] +
-                             numbers[7] * numbers[7];
-      if (!(norm_sq > 1e-12)) return fail("quaternion qx qy qz qw is zero: not a rotation");
-      point = {numbers[1], numbers[2]};
-    }
-    if (const std::string absurd = absurd_pose(point, points.empty() ? nullptr : &points.back(), length);
-        !absurd.empty())
-      return fail(absurd);
-    points.push_back(point);
-    ++route.poses;
+    if (!parse_numbers(line, numbers, bad)) return at_line("'" + bad + "' is not a number");
+    if (const std::string wrong = add_pose(numbers, expected, route, length); !wrong.empty())
+      return at_line(wrong);
   }
-  if (route.poses < 2) {
-    error = path + ": a route needs at least 2 poses, found " + std::to_string(route.poses);
-    return std::nullopt;
-  }
-  route.duration_s = route.format == RouteFormat::kKitti ? 0.1 * double(route.poses - 1) : last_t - first_t;
+  if (route.points.size() < 2)
+    return error(path + ": a route needs at least 2 poses, found " + std::to_string(route.points.size()));
+  return route;
+}
 
-  // Resample every 0.5 m along the polyline, then smooth with a 5-point
-  // moving average: recorded poses jitter, a car's path does not.
-  Path raw;
-  for (const auto& p : points) raw.add_point(p[0], p[1]);
-  if (raw.length() < 10.0) {
-    error = path + ": the route is only " + std::to_string(raw.length()) + " m long (at least 10 m needed)";
-    return std::nullopt;
-  }
+// `raw` resampled every 0.5 m along the polyline.
+std::vector<std::array<double, 2>> resample(const Path& raw) {
   std::vector<std::array<double, 2>> even;
   for (double s = 0.0; s <= raw.length(); s += 0.5) {
     const Pose2 p = raw.at(s);
@@ -141,6 +146,12 @@ std::optional<Route> load_route(const std::string& path, std::string& error) {
     const Pose2 end = raw.at(raw.length());
     even.push_back({end.x, end.y});
   }
+  return even;
+}
+
+// A 5-point moving average: recorded poses jitter, a car's path does not.
+Path smooth(const std::vector<std::array<double, 2>>& even) {
+  Path path;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(even.size());
   for (std::ptrdiff_t i = 0; i < n; ++i) {
     double x = 0, y = 0;
@@ -151,8 +162,29 @@ std::optional<Route> load_route(const std::string& path, std::string& error) {
       x += even[static_cast<std::size_t>(j)][0];
       y += even[static_cast<std::size_t>(j)][1];
     }
-    route.path.add_point(x / k, y / k);
+    path.add_point(x / k, y / k);
   }
+  return path;
+}
+
+}  // namespace
+
+Result<Route> load_route(const std::string& path) {
+  std::string text, read_error;
+  if (!tools::read_input(path, kMaxRouteBytes, "a route file", text, read_error)) return error(read_error);
+  Result<RoutePoints> poses = read_poses(path, text);
+  if (!poses) return poses.error();
+  Route route;
+  route.format = poses->format;
+  route.poses = poses->points.size();
+  route.duration_s =
+      route.format == RouteFormat::kKitti ? 0.1 * double(route.poses - 1) : poses->last_t - poses->first_t;
+  Path raw;
+  for (const auto& p : poses->points) raw.add_point(p[0], p[1]);
+  if (raw.length() < 10.0)
+    return error(path + ": the route is only " + std::to_string(raw.length()) +
+                 " m long (at least 10 m needed)");
+  route.path = smooth(resample(raw));
   return route;
 }
 

@@ -17,9 +17,9 @@
 #pragma once
 
 #include <cstddef>
-#include <optional>
 #include <string>
 
+#include "app/common/result.hpp"
 #include "sim/world.hpp"
 
 namespace markloop::sim {
@@ -39,8 +39,8 @@ inline constexpr double kMaxRouteLength_m = 100e3;
 inline constexpr double kMaxRouteStep_m = 1000.0;  // between successive poses
 inline constexpr double kMaxRouteCoordinate_m = 1e8;
 
-// On failure returns nullopt and sets `error` to "FILE:LINE: what is wrong"
-// (or "FILE: ..." for whole-file problems).
-std::optional<Route> load_route(const std::string& path, std::string& error);
+// The route in the file `path`, or an error "FILE:LINE: what is wrong" (or
+// "FILE: ..." for whole-file problems).
+Result<Route> load_route(const std::string& path);
 
 }  // namespace markloop::sim

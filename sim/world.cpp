@@ -115,248 +115,335 @@ Path rounded_tour(const std::vector<std::array<double, 2>>& corners, double radi
   return p;
 }
 
+// The route is judged a metre at a time.
+constexpr double kStep = 1.0;
+constexpr double kMinGap = 30.0;  // closer along the route is the same pass
+constexpr double kLineHalfWidth = 0.075;
+
+// A cell of a spatial hash of the route's samples.
+std::int64_t cell_key(std::int64_t cx, std::int64_t cy) {
+  return cx * 73856093LL ^ cy * 19349663LL;
+}
+
+// Per metre of the route: whether it revisits an earlier stretch, beside
+// it (within `radius`), not before or after it, heading within 45 degrees.
+std::vector<std::uint8_t> find_revisits(const std::vector<Pose2>& poses, double radius) {
+  const std::size_t samples = poses.size();
+  std::vector<std::uint8_t> revisit(samples, 0);
+  const double cell = std::max(radius, 1.0);
+  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
+  for (std::size_t i = 0; i < samples; ++i) {
+    const Pose2& p = poses[i];
+    const auto cx = static_cast<std::int64_t>(std::floor(p.x / cell));
+    const auto cy = static_cast<std::int64_t>(std::floor(p.y / cell));
+    for (std::int64_t dx = -1; dx <= 1 && !revisit[i]; ++dx)
+      for (std::int64_t dy = -1; dy <= 1 && !revisit[i]; ++dy) {
+        const auto it = grid.find(cell_key(cx + dx, cy + dy));
+        if (it == grid.end()) continue;
+        for (const std::uint32_t j : it->second) {
+          if (static_cast<double>(i - j) * kStep < kMinGap) continue;
+          const Pose2& q = poses[j];
+          const double ex = p.x - q.x, ey = p.y - q.y;
+          const double along = ex * std::cos(q.yaw) + ey * std::sin(q.yaw);
+          const double across = -ex * std::sin(q.yaw) + ey * std::cos(q.yaw);
+          if (std::abs(along) <= 0.6 * kStep && std::abs(across) < radius &&
+              std::cos(wrap_angle(p.yaw - q.yaw)) > std::cos(kPi / 4)) {
+            revisit[i] = 1;
+            break;
+          }
+        }
+      }
+    grid[cell_key(cx, cy)].push_back(static_cast<std::uint32_t>(i));
+  }
+  return revisit;
+}
+
+// Per metre of the route: whether it lies inside an intersection, where
+// another stretch of it crosses (heading 45 to 135 degrees off). Real roads
+// paint no markings there: they would lie across the other road's.
+std::vector<std::uint8_t> find_crossings(const std::vector<Pose2>& poses, int lanes, double w) {
+  const std::size_t samples = poses.size();
+  std::vector<std::uint8_t> crossing(samples, 0);
+  const double reach = lanes * w / 2 + 0.6;      // the road's half width, shoulders included
+  const double to_centre = (lanes - 1) * w / 2;  // from the route's lane to the road's middle
+  std::vector<Pose2> centres(samples);
+  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
+  const auto cell_of = [&](double v) { return static_cast<std::int64_t>(std::floor(v / reach)); };
+  for (std::size_t i = 0; i < samples; ++i) {
+    centres[i] = beside(poses[i], to_centre);
+    grid[cell_key(cell_of(centres[i].x), cell_of(centres[i].y))].push_back(static_cast<std::uint32_t>(i));
+  }
+  for (std::size_t i = 0; i < samples; ++i) {
+    const auto& [x, y, yaw] = centres[i];
+    for (std::int64_t dx = -1; dx <= 1 && !crossing[i]; ++dx)
+      for (std::int64_t dy = -1; dy <= 1 && !crossing[i]; ++dy) {
+        const auto it = grid.find(cell_key(cell_of(x) + dx, cell_of(y) + dy));
+        if (it == grid.end()) continue;
+        for (const std::uint32_t j : it->second) {
+          const double apart = std::abs(static_cast<double>(i) - static_cast<double>(j)) * kStep;
+          if (apart < kMinGap || std::hypot(centres[j].x - x, centres[j].y - y) >= reach) continue;
+          if (std::abs(std::cos(wrap_angle(centres[j].yaw - yaw))) < std::cos(kPi / 4)) {
+            crossing[i] = 1;
+            break;
+          }
+        }
+      }
+  }
+  return crossing;
+}
+
+// The route a metre at a time, and what each metre is.
+struct RouteSamples {
+  std::vector<Pose2> poses;
+  std::vector<std::uint8_t> revisit;   // runs along an earlier stretch
+  std::vector<std::uint8_t> crossing;  // inside an intersection
+
+  RouteSamples(const Path& road, const WorldConfig& config, int lanes) {
+    const auto samples = static_cast<std::size_t>(road.length() / kStep) + 1;
+    poses.resize(samples);
+    for (std::size_t i = 0; i < samples; ++i) poses[i] = road.at(static_cast<double>(i) * kStep);
+    revisit = find_revisits(poses, config.revisit_radius_m);
+    crossing = find_crossings(poses, lanes, config.lane_width_m);
+  }
+  std::size_t size() const { return poses.size(); }
+  // The sample nearest arc length s.
+  std::size_t at(double s) const {
+    const std::size_t samples = poses.size();
+    const auto i = static_cast<std::size_t>(std::clamp(s / kStep, 0.0, double(samples - 1)) + 0.5);
+    return std::min(i, samples - 1);
+  }
+  bool is_new(double s) const { return revisit[at(s)] == 0; }
+  // Whether a marking `half_length` either side of s, and a metre more,
+  // stays clear of every intersection.
+  bool clear_of_crossings(double s, double half_length) const {
+    for (std::size_t i = at(s - half_length - 1.0); i <= at(s + half_length + 1.0); ++i)
+      if (crossing[i]) return false;
+    return true;
+  }
+};
+
+// A line strip and its metre of route, for the markings' check against
+// lines of other stretches of road.
+struct LinePiece {
+  std::size_t strip;
+  std::size_t sample;
+};
+
+// An oriented strip `left` of p. On a curve a strip off the centre line
+// spans a longer arc than its metre of route: lengthen it by the curvature
+// so neighbours still overlap at their outer edges.
+void add_strip(std::vector<Strip>& strips, const Pose2& p, double curvature, double left, double half_length,
+               double half_width, StripKind kind) {
+  const double stretch = 1.0 + std::abs(curvature) * (std::abs(left) + half_width);
+  const Pose2 at = beside(p, left);
+  strips.push_back(
+      {at.x, at.y, at.yaw, static_cast<float>(half_length * stretch), static_cast<float>(half_width), kind});
+}
+
+// Road surface and lines along the new metres of the route; returns the
+// line strips.
+std::vector<LinePiece> lay_road(Scenario& scenario, const RouteSamples& route, int lanes, double w) {
+  const Path& road = scenario.road;
+  const std::size_t samples = route.size();
+  constexpr double kDashPeriod = 12.0, kDashLength = 3.0;  // US practice: 3 m line, 9 m gap
+  std::vector<LinePiece> line_pieces;
+  double curvature = 0.0;
+  const auto line_at = [&](std::size_t i, const Pose2& p, double left, double half_length, StripKind kind) {
+    line_pieces.push_back({scenario.strips.size(), i});
+    add_strip(scenario.strips, p, curvature, left, half_length, kLineHalfWidth, kind);
+  };
+  for (std::size_t i = 0; i + 1 < samples; ++i) {
+    if (route.revisit[i]) continue;
+    const double s = (static_cast<double>(i) + 0.5) * kStep;
+    const Pose2 p = road.at(s);
+    curvature = wrap_angle(road.at(s + kStep).yaw - road.at(s - kStep).yaw) / (2 * kStep);
+    const double half = kStep / 2 + 0.05;  // overlap: no seams
+    // Road surface in 2 m pieces (fewer, larger boxes to draw).
+    if (i % 2 == 0 && (i + 1 >= samples || !route.revisit[i + 1]))
+      add_strip(scenario.strips, road.at(s + kStep / 2), curvature, (lanes - 1) * w / 2, kStep + 0.05,
+                lanes * w / 2 + 0.6, StripKind::kRoad);
+    else if (i % 2 == 0 || (i > 0 && route.revisit[i - 1]))
+      add_strip(scenario.strips, p, curvature, (lanes - 1) * w / 2, half, lanes * w / 2 + 0.6,
+                StripKind::kRoad);
+    line_at(i, p, -w / 2 + 0.1, half, StripKind::kWhiteLine);              // edge
+    line_at(i, p, (lanes - 0.5) * w - 0.1, half, StripKind::kYellowLine);  // centre
+    if (std::fmod(s, kDashPeriod) < kDashLength)
+      for (int k = 0; k + 1 < lanes; ++k) line_at(i, p, (k + 0.5) * w, half - 0.05, StripKind::kWhiteLine);
+  }
+  return line_pieces;
+}
+
 struct RowSegment {
   double begin_s;
   double end_s;
   std::uint64_t seed;  // the row layout of this stretch
 };
 
+// A marking's own frame: along and across it from its centre.
+struct MarkingFrame {
+  explicit MarkingFrame(const Pose2& p) : at(p), c(std::cos(p.yaw)), sn(std::sin(p.yaw)) {}
+  std::array<double, 2> offset(double x, double y) const {
+    return {(x - at.x) * c + (y - at.y) * sn, -(x - at.x) * sn + (y - at.y) * c};
+  }
+  Pose2 at;
+  double c, sn;
+};
+
+// Lays the marking rows along the road. Each segment draws its rows from
+// its own generator, so segments with the same seed look the same
+// (repeated city blocks).
+class MarkingLayer {
+ public:
+  MarkingLayer(Scenario& scenario, const WorldConfig& config, const std::array<double, kClassCount>& weights,
+               const RouteSamples& route, std::vector<LinePiece> line_pieces)
+      : scenario_(scenario),
+        config_(config),
+        route_(route),
+        line_pieces_(std::move(line_pieces)),
+        lanes_(std::max(1, config.lanes)),
+        w_(config.lane_width_m),
+        pick_class_(weights.begin(), weights.end()),
+        crosswalk_(*perception::marking_class_from_name("crosswalk")),
+        laid_in_lane_(static_cast<std::size_t>(lanes_),
+                      {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()}) {}
+
+  void lay(const RowSegment& segment) {
+    std::mt19937_64 rng(segment.seed);
+    std::uniform_real_distribution<double> spacing(config_.row_spacing_min_m, config_.row_spacing_max_m);
+    const double end = std::min(segment.end_s, scenario_.road.length() - 5.0);
+    for (double s = segment.begin_s + spacing(rng) / 2; s < end; s += spacing(rng)) lay_row(s, rng);
+  }
+
+ private:
+  // A marking is not painted over, nor within kMarkingGap of, one laid
+  // before in its lane (a crosswalk: in any lane): rows a few metres apart
+  // would otherwise lay 6 m arrows over each other, and a crosswalk over
+  // the row beside it.
+  static constexpr double kMarkingGap = 1.0;
+  // A marking lies flat in its lane: the lane straight under it (its
+  // centre strays under kMaxBend from the marking's axis) and no line of
+  // another stretch of road (a corner's arc, a road joining at a shallow
+  // angle) within kLineClearance of it. Real roads paint markings on
+  // straight approaches, not round a corner, where a 6 m arrow's ends stray
+  // 0.2 m and more towards its lane's lines and the corner's arc crosses
+  // the next street.
+  static constexpr double kMaxBend = 0.1, kLineClearance = 0.3;
+  static constexpr double kOwnStretch = 2.0;  // its own lines (a stop line meets one) are judged by the bend
+
+  void lay_row(double s, std::mt19937_64& rng);
+  bool clear_of_lanes(int first, int last, const std::array<double, 2>& stretch) const;
+  bool lies_flat(double s, double left, const Pose2& at, double half_length, double half_width) const;
+  bool line_near(const MarkingFrame& marking, std::size_t first, std::size_t last, double half_length,
+                 double half_width) const;
+
+  Scenario& scenario_;
+  const WorldConfig& config_;
+  const RouteSamples& route_;
+  const std::vector<LinePiece> line_pieces_;
+  const int lanes_;
+  const double w_;
+  std::uniform_real_distribution<double> unit_{0.0, 1.0};
+  std::discrete_distribution<int> pick_class_;
+  const Label crosswalk_;
+  // The stretch along the route of the last marking laid in each lane.
+  std::vector<std::array<double, 2>> laid_in_lane_;
+  std::uint32_t next_id_ = 0;
+};
+
+// One row at arc length s: per lane, a marking or none. The random draws
+// stay as if every marking were laid: the rows after one left out (in an
+// intersection, too close to another) are the same with or without it.
+void MarkingLayer::lay_row(double s, std::mt19937_64& rng) {
+  const Pose2 centre = scenario_.road.at(s);
+  const bool lay = route_.is_new(s);
+  bool any = false;
+  for (int lane = 0; lane < lanes_; ++lane) {
+    const bool last_chance = lane == lanes_ - 1 && !any;
+    if (!last_chance && unit_(rng) >= config_.marking_probability) continue;
+    any = true;
+    const auto label = static_cast<Label>(pick_class_(rng));
+    if (!lay) continue;
+    const auto size = marking_size(label, w_, lanes_);
+    const std::array<double, 2> stretch{s - size[0] / 2, s + size[0] / 2};  // along the route
+    const int first_lane = label == crosswalk_ ? 0 : lane;
+    const int last_lane = label == crosswalk_ ? lanes_ - 1 : lane;
+    // A crosswalk spans the whole road: it takes the row.
+    const double left = label == crosswalk_ ? (lanes_ - 1) * w_ / 2 : lane * w_;
+    const Pose2 at = beside(centre, left);
+    if (!route_.clear_of_crossings(s, size[0] / 2) || !clear_of_lanes(first_lane, last_lane, stretch) ||
+        !lies_flat(s, left, at, size[0] / 2, size[1] / 2)) {
+      if (label == crosswalk_) break;
+      continue;
+    }
+    for (int k = first_lane; k <= last_lane; ++k) laid_in_lane_[static_cast<std::size_t>(k)] = stretch;
+    Marking m;
+    m.id = next_id_++;
+    m.label = label;
+    m.x = at.x;
+    m.y = at.y;
+    m.heading = at.yaw;
+    m.lane = label == crosswalk_ ? 0 : lane;
+    m.length_m = size[0];
+    m.width_m = size[1];
+    scenario_.markings.push_back(m);
+    if (label == crosswalk_) break;
+  }
+}
+
+bool MarkingLayer::clear_of_lanes(int first, int last, const std::array<double, 2>& stretch) const {
+  for (int k = first; k <= last; ++k) {
+    const auto& [begin, end] = laid_in_lane_[static_cast<std::size_t>(k)];
+    if (stretch[1] + kMarkingGap > begin && stretch[0] - kMarkingGap < end) return false;
+  }
+  return true;
+}
+
+// Whether a marking's footprint (centre, heading, half sizes) lies flat in
+// its lane.
+bool MarkingLayer::lies_flat(double s, double left, const Pose2& at, double half_length,
+                             double half_width) const {
+  const MarkingFrame marking(at);
+  const std::size_t first = route_.at(s - half_length), last = route_.at(s + half_length);
+  for (std::size_t i = first; i <= last; ++i) {
+    const Pose2 lane_centre = beside(route_.poses[i], left);
+    if (std::abs(marking.offset(lane_centre.x, lane_centre.y)[1]) > kMaxBend) return false;
+  }
+  return !line_near(marking, first, last, half_length, half_width);
+}
+
+// Whether a line of another stretch of road (not the samples first..last
+// under the marking, give or take kOwnStretch) lies within kLineClearance
+// of the marking.
+bool MarkingLayer::line_near(const MarkingFrame& marking, std::size_t first, std::size_t last,
+                             double half_length, double half_width) const {
+  const double margin = kLineClearance + kLineHalfWidth;
+  const auto inside = [&](double x, double y) {
+    const auto [along, across] = marking.offset(x, y);
+    return std::abs(along) <= half_length + margin && std::abs(across) <= half_width + margin;
+  };
+  const double reach = half_length + half_width + margin + kStep;
+  const auto own = static_cast<std::size_t>(kOwnStretch / kStep);
+  for (const LinePiece& piece : line_pieces_) {
+    if (piece.sample + own >= first && piece.sample <= last + own) continue;
+    const Strip& line = scenario_.strips[piece.strip];
+    if (std::abs(line.x - marking.at.x) > reach || std::abs(line.y - marking.at.y) > reach) continue;
+    const double hx = std::cos(line.heading) * line.half_length;
+    const double hy = std::sin(line.heading) * line.half_length;
+    if (inside(line.x, line.y) || inside(line.x + hx, line.y + hy) || inside(line.x - hx, line.y - hy))
+      return true;
+  }
+  return false;
+}
+
 // Lays road surface, lane lines and marking rows along one lap of
 // scenario.road, skipping stretches that revisit an earlier one.
 void lay_world(Scenario& scenario, const WorldConfig& config, const std::array<double, kClassCount>& weights,
                const std::vector<RowSegment>& segments) {
-  const Path& road = scenario.road;
-  const double length = road.length();
-  const double w = config.lane_width_m;
   const int lanes = std::max(1, config.lanes);
-
-  // 1. Which metre of the route is new road, which revisits an earlier one.
-  constexpr double kStep = 1.0;
-  constexpr double kMinGap = 30.0;  // closer along the route is the same pass
-  const auto samples = static_cast<std::size_t>(length / kStep) + 1;
-  std::vector<Pose2> poses(samples);  // the route a metre at a time (here and in 1b)
-  for (std::size_t i = 0; i < samples; ++i) poses[i] = road.at(static_cast<double>(i) * kStep);
-  // Cells of a spatial hash of the route's samples (here and in 1b).
-  const auto key = [](std::int64_t cx, std::int64_t cy) { return cx * 73856093LL ^ cy * 19349663LL; };
-  std::vector<std::uint8_t> revisit(samples, 0);
-  {
-    const double cell = std::max(config.revisit_radius_m, 1.0);
-    std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
-    for (std::size_t i = 0; i < samples; ++i) {
-      const Pose2& p = poses[i];
-      const auto cx = static_cast<std::int64_t>(std::floor(p.x / cell));
-      const auto cy = static_cast<std::int64_t>(std::floor(p.y / cell));
-      for (std::int64_t dx = -1; dx <= 1 && !revisit[i]; ++dx)
-        for (std::int64_t dy = -1; dy <= 1 && !revisit[i]; ++dy) {
-          const auto it = grid.find(key(cx + dx, cy + dy));
-          if (it == grid.end()) continue;
-          for (const std::uint32_t j : it->second) {
-            if (static_cast<double>(i - j) * kStep < kMinGap) continue;
-            const Pose2& q = poses[j];
-            // Covered by the earlier metre of road: beside it (within the
-            // radius), not before or after it.
-            const double ex = p.x - q.x, ey = p.y - q.y;
-            const double along = ex * std::cos(q.yaw) + ey * std::sin(q.yaw);
-            const double across = -ex * std::sin(q.yaw) + ey * std::cos(q.yaw);
-            if (std::abs(along) <= 0.6 * kStep && std::abs(across) < config.revisit_radius_m &&
-                std::cos(wrap_angle(p.yaw - q.yaw)) > std::cos(kPi / 4)) {
-              revisit[i] = 1;
-              break;
-            }
-          }
-        }
-      grid[key(cx, cy)].push_back(static_cast<std::uint32_t>(i));
-    }
-  }
-  const auto sample_at = [&](double s) {
-    const auto i = static_cast<std::size_t>(std::clamp(s / kStep, 0.0, double(samples - 1)) + 0.5);
-    return std::min(i, samples - 1);
-  };
-  const auto is_new = [&](double s) { return revisit[sample_at(s)] == 0; };
-
-  // 1b. Which metre of the route lies inside an intersection, where another
-  // stretch of it crosses (heading 45 to 135 degrees off). Real roads paint
-  // no markings there: they would lie across the other road's.
-  std::vector<std::uint8_t> crossing(samples, 0);
-  {
-    const double reach = lanes * w / 2 + 0.6;      // the road's half width, shoulders included
-    const double to_centre = (lanes - 1) * w / 2;  // from the route's lane to the road's middle
-    std::vector<Pose2> centres(samples);
-    std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
-    const auto cell_of = [&](double v) { return static_cast<std::int64_t>(std::floor(v / reach)); };
-    for (std::size_t i = 0; i < samples; ++i) {
-      centres[i] = beside(poses[i], to_centre);
-      grid[key(cell_of(centres[i].x), cell_of(centres[i].y))].push_back(static_cast<std::uint32_t>(i));
-    }
-    for (std::size_t i = 0; i < samples; ++i) {
-      const auto& [x, y, yaw] = centres[i];
-      for (std::int64_t dx = -1; dx <= 1 && !crossing[i]; ++dx)
-        for (std::int64_t dy = -1; dy <= 1 && !crossing[i]; ++dy) {
-          const auto it = grid.find(key(cell_of(x) + dx, cell_of(y) + dy));
-          if (it == grid.end()) continue;
-          for (const std::uint32_t j : it->second) {
-            const double apart = std::abs(static_cast<double>(i) - static_cast<double>(j)) * kStep;
-            if (apart < kMinGap || std::hypot(centres[j].x - x, centres[j].y - y) >= reach) continue;
-            if (std::abs(std::cos(wrap_angle(centres[j].yaw - yaw))) < std::cos(kPi / 4)) {
-              crossing[i] = 1;
-              break;
-            }
-          }
-        }
-    }
-  }
-  // Whether a marking `half_length` either side of s, and a metre more,
-  // stays clear of every intersection.
-  const auto clear_of_crossings = [&](double s, double half_length) {
-    for (std::size_t i = sample_at(s - half_length - 1.0); i <= sample_at(s + half_length + 1.0); ++i)
-      if (crossing[i]) return false;
-    return true;
-  };
-
-  // 2. Road surface and lines, a metre at a time. On a curve a strip off
-  // the centre line spans a longer arc than its metre of route: lengthen it
-  // by the curvature so neighbours still overlap at their outer edges.
-  double curvature = 0.0;
-  const auto strip_at = [&](const Pose2& p, double left, double half_length, double half_width,
-                            StripKind kind) {
-    const double stretch = 1.0 + std::abs(curvature) * (std::abs(left) + half_width);
-    const Pose2 at = beside(p, left);
-    scenario.strips.push_back({at.x, at.y, at.yaw, static_cast<float>(half_length * stretch),
-                               static_cast<float>(half_width), kind});
-  };
-  constexpr double kLineHalfWidth = 0.075;
-  constexpr double kDashPeriod = 12.0, kDashLength = 3.0;  // US practice: 3 m line, 9 m gap
-  // Each line strip's metre of route, for step 3's check against lines of
-  // other stretches of road.
-  struct LinePiece {
-    std::size_t strip;
-    std::size_t sample;
-  };
-  std::vector<LinePiece> line_pieces;
-  const auto line_at = [&](std::size_t i, const Pose2& p, double left, double half_length, StripKind kind) {
-    line_pieces.push_back({scenario.strips.size(), i});
-    strip_at(p, left, half_length, kLineHalfWidth, kind);
-  };
-  for (std::size_t i = 0; i + 1 < samples; ++i) {
-    if (revisit[i]) continue;
-    const double s = (static_cast<double>(i) + 0.5) * kStep;
-    const Pose2 p = road.at(s);
-    curvature = wrap_angle(road.at(s + kStep).yaw - road.at(s - kStep).yaw) / (2 * kStep);
-    const double half = kStep / 2 + 0.05;  // overlap: no seams
-    // Road surface in 2 m pieces (fewer, larger boxes to draw).
-    if (i % 2 == 0 && (i + 1 >= samples || !revisit[i + 1]))
-      strip_at(road.at(s + kStep / 2), (lanes - 1) * w / 2, kStep + 0.05, lanes * w / 2 + 0.6,
-               StripKind::kRoad);
-    else if (i % 2 == 0 || (i > 0 && revisit[i - 1]))
-      strip_at(p, (lanes - 1) * w / 2, half, lanes * w / 2 + 0.6, StripKind::kRoad);
-    line_at(i, p, -w / 2 + 0.1, half, StripKind::kWhiteLine);              // edge
-    line_at(i, p, (lanes - 0.5) * w - 0.1, half, StripKind::kYellowLine);  // centre
-    if (std::fmod(s, kDashPeriod) < kDashLength)
-      for (int k = 0; k + 1 < lanes; ++k) line_at(i, p, (k + 0.5) * w, half - 0.05, StripKind::kWhiteLine);
-  }
-
-  // 3. Marking rows. Each segment draws its rows from its own generator, so
-  // segments with the same seed look the same (repeated city blocks).
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  std::discrete_distribution<int> pick_class(weights.begin(), weights.end());
-  const Label crosswalk = *perception::marking_class_from_name("crosswalk");
-  // The stretch along the route of the last marking laid in each lane. A
-  // marking is not painted over, nor within a metre of, one laid before in
-  // its lane (a crosswalk: in any lane): rows a few metres apart would
-  // otherwise lay 6 m arrows over each other, and a crosswalk over the
-  // row beside it.
-  constexpr double kMarkingGap = 1.0;
-  std::vector<std::array<double, 2>> laid_in_lane(
-      static_cast<std::size_t>(lanes),
-      {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()});
-  const auto clear_of_lanes = [&](int first, int last, const std::array<double, 2>& stretch) {
-    for (int k = first; k <= last; ++k) {
-      const auto& [begin, end] = laid_in_lane[static_cast<std::size_t>(k)];
-      if (stretch[1] + kMarkingGap > begin && stretch[0] - kMarkingGap < end) return false;
-    }
-    return true;
-  };
-  // Whether a marking's footprint (centre, heading, half sizes) lies flat
-  // in its lane: the lane straight under it (its centre strays under
-  // kMaxBend from the marking's axis) and no line of another stretch of road
-  // (a corner's arc, a road joining at a shallow angle) within
-  // kLineClearance of it. Real roads paint markings on straight approaches,
-  // not round a corner, where a 6 m arrow's ends stray 0.2 m and more
-  // towards its lane's lines and the corner's arc crosses the next street.
-  constexpr double kMaxBend = 0.1, kLineClearance = 0.3;
-  constexpr double kOwnStretch = 2.0;  // its own lines (a stop line meets one) are judged by the bend
-  const auto lies_flat = [&](double s, double left, const Pose2& at, double half_length, double half_width) {
-    const double c = std::cos(at.yaw), sn = std::sin(at.yaw);
-    const auto offset = [&](double x, double y) {  // along, across the marking
-      return std::array<double, 2>{(x - at.x) * c + (y - at.y) * sn, -(x - at.x) * sn + (y - at.y) * c};
-    };
-    const std::size_t first = sample_at(s - half_length), last = sample_at(s + half_length);
-    for (std::size_t i = first; i <= last; ++i) {
-      const Pose2 lane_centre = beside(poses[i], left);
-      if (std::abs(offset(lane_centre.x, lane_centre.y)[1]) > kMaxBend) return false;
-    }
-    const double margin = kLineClearance + kLineHalfWidth;
-    const auto inside = [&](double x, double y) {
-      const auto [along, across] = offset(x, y);
-      return std::abs(along) <= half_length + margin && std::abs(across) <= half_width + margin;
-    };
-    const double reach = half_length + half_width + margin + kStep;
-    const auto own = static_cast<std::size_t>(kOwnStretch / kStep);
-    for (const LinePiece& piece : line_pieces) {
-      if (piece.sample + own >= first && piece.sample <= last + own) continue;
-      const Strip& line = scenario.strips[piece.strip];
-      if (std::abs(line.x - at.x) > reach || std::abs(line.y - at.y) > reach) continue;
-      const double hx = std::cos(line.heading) * line.half_length;
-      const double hy = std::sin(line.heading) * line.half_length;
-      if (inside(line.x, line.y) || inside(line.x + hx, line.y + hy) || inside(line.x - hx, line.y - hy))
-        return false;
-    }
-    return true;
-  };
-  std::uint32_t next_id = 0;
-  for (const RowSegment& segment : segments) {
-    std::mt19937_64 rng(segment.seed);
-    std::uniform_real_distribution<double> spacing(config.row_spacing_min_m, config.row_spacing_max_m);
-    const double end = std::min(segment.end_s, length - 5.0);
-    for (double s = segment.begin_s + spacing(rng) / 2; s < end; s += spacing(rng)) {
-      const Pose2 centre = road.at(s);
-      const bool lay = is_new(s);
-      bool any = false;
-      for (int lane = 0; lane < lanes; ++lane) {
-        const bool last_chance = lane == lanes - 1 && !any;
-        if (!last_chance && unit(rng) >= config.marking_probability) continue;
-        any = true;
-        const auto label = static_cast<Label>(pick_class(rng));
-        if (!lay) continue;
-        const auto size = marking_size(label, w, lanes);
-        const std::array<double, 2> stretch{s - size[0] / 2, s + size[0] / 2};  // along the route
-        const int first_lane = label == crosswalk ? 0 : lane;
-        const int last_lane = label == crosswalk ? lanes - 1 : lane;
-        // A crosswalk spans the whole road: it takes the row.
-        const double left = label == crosswalk ? (lanes - 1) * w / 2 : lane * w;
-        const Pose2 at = beside(centre, left);
-        // (The random draws stay as if it were laid: the rows after it are
-        // the same with or without the intersection or the marking before.)
-        if (!clear_of_crossings(s, size[0] / 2) || !clear_of_lanes(first_lane, last_lane, stretch) ||
-            !lies_flat(s, left, at, size[0] / 2, size[1] / 2)) {
-          if (label == crosswalk) break;
-          continue;
-        }
-        for (int k = first_lane; k <= last_lane; ++k) laid_in_lane[static_cast<std::size_t>(k)] = stretch;
-        Marking m;
-        m.id = next_id++;
-        m.label = label;
-        m.x = at.x;
-        m.y = at.y;
-        m.heading = at.yaw;
-        m.lane = label == crosswalk ? 0 : lane;
-        m.length_m = size[0];
-        m.width_m = size[1];
-        scenario.markings.push_back(m);
-        if (label == crosswalk) break;
-      }
-    }
-  }
+  const RouteSamples route(scenario.road, config, lanes);
+  std::vector<LinePiece> line_pieces = lay_road(scenario, route, lanes, config.lane_width_m);
+  MarkingLayer layer(scenario, config, weights, route, std::move(line_pieces));
+  for (const RowSegment& segment : segments) layer.lay(segment);
 }
 
 std::array<double, kClassCount> weights_for(const WorldConfig& config,

@@ -66,15 +66,73 @@ const perception::CameraModel& camera() {
   return model;
 }
 
+// visible.csv: markings of the world, quads inside the image.
+void check_visible_csv(const std::filesystem::path& dir, const std::map<std::string, std::string>& class_of) {
+  const auto visible = lines_of(dir / "visible.csv");
+  CHECK(visible[0] == "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4");
+  REQUIRE(visible.size() > 10);
+  for (std::size_t i = 1; i < visible.size(); ++i) {
+    const auto f = split(visible[i]);
+    REQUIRE(f.size() == 11);
+    CHECK(std::stoi(f[0]) < 30);
+    CHECK(class_of.at(f[1]) == f[2]);
+    for (int k = 3; k < 11; k += 2) {
+      CHECK(std::stod(f[k]) >= 0.0);
+      CHECK(std::stod(f[k]) <= 1279.0);
+      CHECK(std::stod(f[k + 1]) >= 0.0);
+      CHECK(std::stod(f[k + 1]) <= 511.0);
+    }
+    // Near corners lie lower in the image than far ones.
+    CHECK(std::stod(f[4]) > std::stod(f[8]));
+  }
+}
+
+// odometry.log: VehicleOdometry every 20 ms from t = 0, valid E2E; `truth`
+// is frames.csv.
+void check_odometry_log(const std::filesystem::path& dir, const std::vector<std::string>& truth) {
+  const auto log = lines_of(dir / "odometry.log");
+  REQUIRE(log.size() == 146);  // 0 .. 2.9 s
+  CHECK(log[0].rfind("(0000000000.000000) vcan0 120#", 0) == 0);
+  dbc::E2eReceiverState e2e;
+  double heading_change = 0.0;
+  for (std::size_t i = 0; i < log.size(); ++i) {
+    can::CandumpRecord record;
+    can::CandumpLineError line_error;
+    REQUIRE(can::parse_candump_line(log[i], record, line_error));
+    CHECK(record.frame.id == dbc::VehicleOdometry::kId);
+    CHECK(record.frame.timestamp_ns == static_cast<std::int64_t>(i) * 20'000'000);
+    dbc::VehicleOdometry odo;
+    REQUIRE(dbc::decode(record.frame.payload(), e2e, odo) == dbc::DecodeError::None);
+    CHECK(odo.wheel_speed_valid);
+    CHECK_THAT(odo.wheel_speed_m_per_s, WithinAbs(10.0, 0.2));
+    heading_change += odo.yaw_rate_deg_per_s * 0.02;
+  }
+  // The yaw rates add up to the truth's heading change (plus bias, noise).
+  const auto first = split(truth[1]), last = split(truth[30]);
+  const double truth_change =
+      std::remainder(std::stod(last[4]) - std::stod(first[4]), 2 * 3.141592653589793) * 180 /
+      3.141592653589793;
+  CHECK_THAT(heading_change, WithinAbs(truth_change, 1.0));
+
+  // A corrupted payload fails the CRC.
+  can::CandumpRecord record;
+  can::CandumpLineError line_error;
+  REQUIRE(can::parse_candump_line(log[5], record, line_error));
+  record.frame.data[3] ^= 0x10;
+  dbc::VehicleOdometry odo;
+  CHECK(dbc::decode(record.frame.payload(), odo) == dbc::DecodeError::BadCrc);
+}
+
 }  // namespace
 
 TEST_CASE("a drive's files have the agreed formats") {
   const auto dir = scratch("formats");
   const auto scenario = make_scenario("grid", 4);
   REQUIRE(scenario);
-  RecordSummary summary;
+  const auto recorded = record_drive(*scenario, camera(), short_drive(dir, 4));
+  REQUIRE(recorded);
+  const RecordSummary& summary = *recorded;
   std::string error;
-  REQUIRE(record_drive(*scenario, camera(), short_drive(dir, 4), summary, error));
   CHECK(summary.frames == 30);
 
   // frames.y4m: mono, camera size, 10 fps, 30 frames.
@@ -107,57 +165,8 @@ TEST_CASE("a drive's files have the agreed formats") {
     class_of[f[0]] = f[1];
   }
 
-  // visible.csv: markings of the world, quads inside the image.
-  const auto visible = lines_of(dir / "visible.csv");
-  CHECK(visible[0] == "frame,id,class,x1,y1,x2,y2,x3,y3,x4,y4");
-  REQUIRE(visible.size() > 10);
-  for (std::size_t i = 1; i < visible.size(); ++i) {
-    const auto f = split(visible[i]);
-    REQUIRE(f.size() == 11);
-    CHECK(std::stoi(f[0]) < 30);
-    CHECK(class_of.at(f[1]) == f[2]);
-    for (int k = 3; k < 11; k += 2) {
-      CHECK(std::stod(f[k]) >= 0.0);
-      CHECK(std::stod(f[k]) <= 1279.0);
-      CHECK(std::stod(f[k + 1]) >= 0.0);
-      CHECK(std::stod(f[k + 1]) <= 511.0);
-    }
-    // Near corners lie lower in the image than far ones.
-    CHECK(std::stod(f[4]) > std::stod(f[8]));
-  }
-
-  // odometry.log: VehicleOdometry every 20 ms from t = 0, valid E2E.
-  const auto log = lines_of(dir / "odometry.log");
-  REQUIRE(log.size() == 146);  // 0 .. 2.9 s
-  CHECK(log[0].rfind("(0000000000.000000) vcan0 120#", 0) == 0);
-  dbc::E2eReceiverState e2e;
-  double heading_change = 0.0;
-  for (std::size_t i = 0; i < log.size(); ++i) {
-    can::CandumpRecord record;
-    can::CandumpLineError line_error;
-    REQUIRE(can::parse_candump_line(log[i], record, line_error));
-    CHECK(record.frame.id == dbc::VehicleOdometry::kId);
-    CHECK(record.frame.timestamp_ns == static_cast<std::int64_t>(i) * 20'000'000);
-    dbc::VehicleOdometry odo;
-    REQUIRE(dbc::decode(record.frame.payload(), e2e, odo) == dbc::DecodeError::None);
-    CHECK(odo.wheel_speed_valid);
-    CHECK_THAT(odo.wheel_speed_m_per_s, WithinAbs(10.0, 0.2));
-    heading_change += odo.yaw_rate_deg_per_s * 0.02;
-  }
-  // The yaw rates add up to the truth's heading change (plus bias, noise).
-  const auto first = split(truth[1]), last = split(truth[30]);
-  const double truth_change =
-      std::remainder(std::stod(last[4]) - std::stod(first[4]), 2 * 3.141592653589793) * 180 /
-      3.141592653589793;
-  CHECK_THAT(heading_change, WithinAbs(truth_change, 1.0));
-
-  // A corrupted payload fails the CRC.
-  can::CandumpRecord record;
-  can::CandumpLineError line_error;
-  REQUIRE(can::parse_candump_line(log[5], record, line_error));
-  record.frame.data[3] ^= 0x10;
-  dbc::VehicleOdometry odo;
-  CHECK(dbc::decode(record.frame.payload(), odo) == dbc::DecodeError::BadCrc);
+  check_visible_csv(dir, class_of);
+  check_odometry_log(dir, truth);
 
   // camera.yaml: the calibration used.
   const auto loaded = perception::load_camera_model((dir / "camera.yaml").string());
@@ -173,11 +182,9 @@ TEST_CASE("a drive's files have the agreed formats") {
 TEST_CASE("a drive is byte-identical for a seed and differs for another") {
   const auto scenario = make_scenario("loop", 9);
   const auto other = make_scenario("loop", 10);
-  RecordSummary summary;
-  std::string error;
-  REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-a"), 9), summary, error));
-  REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-b"), 9), summary, error));
-  REQUIRE(record_drive(*other, camera(), short_drive(scratch("seed-c"), 10), summary, error));
+  REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-a"), 9)));
+  REQUIRE(record_drive(*scenario, camera(), short_drive(scratch("seed-b"), 9)));
+  REQUIRE(record_drive(*other, camera(), short_drive(scratch("seed-c"), 10)));
   const auto root = std::filesystem::temp_directory_path() / "markloop-sim-tests";
   for (const char* file : {"frames.y4m", "odometry.log", "frames.csv", "markings.csv", "visible.csv",
                            "markings.txt", "poses.txt"}) {
@@ -257,9 +264,9 @@ TEST_CASE("the training set has the real dataset's annotation format") {
   o.out_dir = dir.string();
   o.frames = 4;
   o.progress = false;
-  std::size_t annotations = 0;
-  std::string error;
-  REQUIRE(record_training_set(camera(), o, annotations, error));
+  const auto recorded = record_training_set(camera(), o);
+  REQUIRE(recorded);
+  const std::size_t annotations = *recorded;
   CHECK(annotations >= 4);
   const auto rows = lines_of(dir / "annotations.csv");
   CHECK(rows[0] == "image,label,x1,y1,x2,y2,x3,y3,x4,y4");
@@ -299,4 +306,22 @@ TEST_CASE("markings behind a vehicle ahead are not listed as visible") {
     }
   }
   CHECK(compared > 10);
+}
+
+TEST_CASE("a drive that cannot be written says where") {
+  const auto file = scratch("not-a-folder");
+  std::filesystem::create_directories(file.parent_path());
+  std::ofstream(file) << "a file where the drive's folder should be\n";
+  const auto scenario = make_scenario("loop", 1);
+  const auto recorded = record_drive(*scenario, camera(), short_drive(file / "drive", 1));
+  REQUIRE_FALSE(recorded);
+  CHECK(recorded.message().starts_with((file / "drive").string() + ": cannot create the directory: "));
+  TrainingSetOptions o;
+  o.out_dir = (file / "set").string();
+  o.frames = 1;
+  o.progress = false;
+  const auto set = record_training_set(camera(), o);
+  REQUIRE_FALSE(set);
+  CHECK(set.message().starts_with((file / "set" / "images").string() + ": cannot create the directory: "));
+  std::filesystem::remove(file);
 }
