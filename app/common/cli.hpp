@@ -10,7 +10,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <initializer_list>
 #include <optional>
 #include <span>
 #include <string>
@@ -139,24 +138,6 @@ inline std::string options_help(std::span<const OptionSpec> options) {
     text.append(left).append(o.help).append("\n");
   }
   return text;
-}
-
-// The value after the option argv[i], i moved onto it. `value_options`
-// lists the program's options that take a value: any other is unknown, and
-// one given last lacks its value; either fails saying so.
-inline const char* option_value(int argc, char** argv, int& i,
-                                std::initializer_list<std::string_view> value_options) {
-  const std::string_view option = argv[i];
-  bool known = false;
-  for (std::string_view o : value_options) known = known || o == option;
-  if (!known)
-    fail((option.starts_with("-") ? "unknown option " : "unexpected argument ") + std::string(option) +
-         " (see --help)");
-  if (i + 1 >= argc) fail(std::string(option) + " needs a value (see --help)");
-  // "--map --quiet" is a forgotten value, not a file named "--quiet".
-  if (std::string_view(argv[i + 1]).starts_with("--"))
-    fail(std::string(option) + " needs a value, got the option " + argv[i + 1] + " (see --help)");
-  return argv[++i];
 }
 
 inline double parse_number(std::string_view option, const char* text) {
