@@ -34,9 +34,7 @@ double raw(auto value) {
   return static_cast<double>(value);
 }
 
-}  // namespace
-
-int main() {
+void print_odometry() {
   VehicleOdometry odo;
   odo.wheel_speed_m_per_s = -12.34;
   odo.yaw_rate_deg_per_s = 250.5;
@@ -57,13 +55,17 @@ int main() {
          {"YawRate", -300.0},
          {"WheelSpeedValid", 0},
          {"YawRateValid", 1}});
+}
 
+void print_commands() {
   Command command;
   command.command_code = CommandCode::ResetDatabase;
   print(command, 0, {{"CmdAliveCounter", 0}, {"CommandCode", raw(CommandCode::ResetDatabase)}});
   command.command_code = CommandCode::SaveMap;
   print(command, 1, {{"CmdAliveCounter", 1}, {"CommandCode", raw(CommandCode::SaveMap)}});
+}
 
+void print_loop_pages() {
   LoopDetection loop;
   loop.match_id = 77;
   loop.query_frame = 3000000001U;
@@ -125,7 +127,9 @@ int main() {
         break;
     }
   }
+}
 
+void print_status_pages() {
   Status status;
   status.system_state = SystemState::Running;
   status.fault_camera_lost = true;
@@ -138,7 +142,7 @@ int main() {
   status.sequence_count = 1000001;
   status.fault_camera_blind = true;
   status.frames_blind = 3000000000U;
-  counter = 0;
+  std::uint8_t counter = 0;
   for (const StatusPage page : Status::kPages) {
     status.status_page = page;
     const double p = raw(page);
@@ -194,5 +198,14 @@ int main() {
         break;
     }
   }
+}
+
+}  // namespace
+
+int main() {
+  print_odometry();
+  print_commands();
+  print_loop_pages();
+  print_status_pages();
   return 0;
 }

@@ -12,8 +12,10 @@
 // The resident set size is sampled every 10 minutes of driving.
 #include <catch2/catch_test_macros.hpp>
 
+#include <array>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -39,23 +41,26 @@ constexpr int kCameraFramesPerDetectorFrame = 5;
 #else
 constexpr int kCameraFramesPerDetectorFrame = 1;
 #endif
-}  // namespace
 
-TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays flat") {
+EcuConfig small_ring_config() {
   EcuConfig config;
   // Small rings so that they wrap many times within the hour.
   config.engine.database.landmark_capacity = 512;
   config.engine.database.sequence_capacity = 2048;
   config.camera.fps = 10;
-  // A coarser bird's-eye view keeps the hour affordable in CI; the code path is the same.
+  return config;
+}
+
+// A coarser bird's-eye view keeps the hour affordable in CI; the code path is the same.
+perception::DetectorConfig coarse_detector() {
   perception::DetectorConfig detector;
   detector.region.x_step_m = 0.10f;
   detector.region.y_step_m = 0.08f;
-  RecordingBus bus;
-  const perception::CameraModel camera = perception::default_camera_model();
-  Ecu ecu(config, camera, detector, &bus, nullptr);
+  return detector;
+}
 
-  // Synthetic frames: road grey with painted bars and blocks where the road is.
+// Synthetic frames: road grey with painted bars and blocks where the road is.
+std::vector<cv::Mat> synthetic_frames(const perception::CameraModel& camera) {
   std::vector<cv::Mat> frames;
   for (int i = 0; i < 8; ++i) {
     cv::Mat grey(camera.height(), camera.width(), CV_8UC1, cv::Scalar(70));
@@ -66,52 +71,59 @@ TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays fl
     cv::line(grey, {640, 511}, {600, 260}, cv::Scalar(230), 6);  // a lane line
     frames.push_back(grey);
   }
+  return frames;
+}
 
-  Gateway gateway;
-  LoopRoad road;
-  std::array<perception::Detection, perception::kMaxDetections> detections{};
-  std::vector<std::size_t> rss_samples, anonymous_samples;
-  rss_samples.reserve(16);
-  anonymous_samples.reserve(16);
-  const auto drive = [&](Nanoseconds from, Nanoseconds to) {
+// Drives the ECU around the loop road, sampling the resident set every 10
+// minutes after the warm-up into room reserved beforehand.
+class LoopRoadDrive {
+ public:
+  LoopRoadDrive(Ecu& ecu, const perception::CameraModel& camera)
+      : ecu_(ecu), frames_(synthetic_frames(camera)) {
+    rss_samples.reserve(16);
+    anonymous_samples.reserve(16);
+  }
+
+  void drive(Nanoseconds from, Nanoseconds to) {
     for (Nanoseconds t = from; t < to; t += 20ms) {
-      ecu.on_can_frame(gateway.odometry(LoopRoad::kSpeed, road.yaw_rate()), t);
+      ecu_.on_can_frame(gateway_.odometry(LoopRoad::kSpeed, road_.yaw_rate()), t);
       if (t.count() % 100'000'000 != 0) continue;
       const auto frame_index = static_cast<std::size_t>(t.count() / 100'000'000);
       // The detector's path on a real frame, then what the camera sees of the road.
       if (frame_index % kCameraFramesPerDetectorFrame == 0)
-        (void)ecu.on_frame(frames[(frame_index / kCameraFramesPerDetectorFrame) % frames.size()], t,
-                           SteadyClock::now());
-      const std::size_t n = road.detections(std::chrono::duration<double>(t).count(), detections);
-      ecu.on_detections(std::span<const perception::Detection>(detections.data(), n), t + 1ns,
-                        SteadyClock::now());
-      ecu.send_status(t);
-      if ((t - 130s).count() % 600'000'000'000 == 0) {
-        std::size_t rss = 0, anonymous = 0;
-        (void)platform::resident_bytes(rss);
-        (void)platform::anonymous_resident_bytes(anonymous);
-        rss_samples.push_back(rss);
-        anonymous_samples.push_back(anonymous);
-      }
+        (void)ecu_.on_frame(frames_[(frame_index / kCameraFramesPerDetectorFrame) % frames_.size()], t,
+                            SteadyClock::now());
+      const std::size_t n = road_.detections(std::chrono::duration<double>(t).count(), detections_);
+      ecu_.on_detections(std::span<const perception::Detection>(detections_.data(), n), t + 1ns,
+                         SteadyClock::now());
+      ecu_.send_status(t);
+      if ((t - 130s).count() % 600'000'000'000 == 0) sample_memory();
     }
-  };
+  }
 
-  drive(0s, 130s);  // warm-up: a lap and more, every path taken once
-  REQUIRE(ecu.counters().loop_detections > 0);
-  const auto detections_before = ecu.counters().loop_detections;
-  AllocationCounter heap;
-  drive(130s, 130s + 3600s + 20ms);  // the last sample at 60 min included
-  const std::size_t allocations = heap.stop();
+  std::vector<std::size_t> rss_samples, anonymous_samples;
 
-  INFO("allocations during the hour: " << allocations);
-  CHECK(allocations == 0);
-  CHECK(ecu.counters().frames_processed >= 36000 + 36000 / kCameraFramesPerDetectorFrame);
-  CHECK(ecu.counters().loop_detections - detections_before > 500);
-  CHECK(bus.errors == 0);
-  CHECK(ecu.engine().database().stats().landmarks_evicted > 1000);
-  // Memory: anonymous resident memory (heap, stacks, tables) does not change
-  // at all; the total RSS may grow by program text paged in when a code path
-  // runs for the first time (e.g. eviction, once the rings wrap).
+ private:
+  void sample_memory() {
+    std::size_t rss = 0, anonymous = 0;
+    (void)platform::resident_bytes(rss);
+    (void)platform::anonymous_resident_bytes(anonymous);
+    rss_samples.push_back(rss);
+    anonymous_samples.push_back(anonymous);
+  }
+
+  Ecu& ecu_;
+  std::vector<cv::Mat> frames_;
+  Gateway gateway_;
+  LoopRoad road_;
+  std::array<perception::Detection, perception::kMaxDetections> detections_{};
+};
+
+// Memory: anonymous resident memory (heap, stacks, tables) does not change
+// at all; the total RSS may grow by program text paged in when a code path
+// runs for the first time (e.g. eviction, once the rings wrap).
+void check_memory_flat(const std::vector<std::size_t>& rss_samples,
+                       const std::vector<std::size_t>& anonymous_samples) {
   REQUIRE(anonymous_samples.size() >= 7);
 #ifndef MARKLOOP_UNDER_EMULATOR  // under qemu-user these are the emulator's pages
   for (std::size_t i = 1; i < anonymous_samples.size(); ++i) {
@@ -126,4 +138,30 @@ TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays fl
       s += std::to_string(rss_samples[i]) + "/" + std::to_string(anonymous_samples[i]) + " ";
     return s;
   }());
+}
+
+}  // namespace
+
+TEST_CASE("an hour of driving through the ECU allocates nothing and RSS stays flat") {
+  const EcuConfig config = small_ring_config();
+  const perception::DetectorConfig detector = coarse_detector();
+  RecordingBus bus;
+  const perception::CameraModel camera = perception::default_camera_model();
+  Ecu ecu(config, camera, detector, &bus, nullptr);
+  LoopRoadDrive road(ecu, camera);
+
+  road.drive(0s, 130s);  // warm-up: a lap and more, every path taken once
+  REQUIRE(ecu.counters().loop_detections > 0);
+  const auto detections_before = ecu.counters().loop_detections;
+  AllocationCounter heap;
+  road.drive(130s, 130s + 3600s + 20ms);  // the last sample at 60 min included
+  const std::size_t allocations = heap.stop();
+
+  INFO("allocations during the hour: " << allocations);
+  CHECK(allocations == 0);
+  CHECK(ecu.counters().frames_processed >= 36000 + 36000 / kCameraFramesPerDetectorFrame);
+  CHECK(ecu.counters().loop_detections - detections_before > 500);
+  CHECK(bus.errors == 0);
+  CHECK(ecu.engine().database().stats().landmarks_evicted > 1000);
+  check_memory_flat(road.rss_samples, road.anonymous_samples);
 }

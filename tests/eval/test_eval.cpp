@@ -99,32 +99,30 @@ TEST_CASE("the ECU's CAN log is reassembled and its bad frames counted") {
   CHECK(log.status.frames_in_state[static_cast<std::size_t>(dbc::SystemState::Running)] == kStatusFrames);
 }
 
-TEST_CASE("loop detections are judged against the truth") {
-  const fs::path dir = fresh_dir("loops");
+namespace {
+
+// The truth and the ECU's CAN log of the fixture's run.
+struct LoopDrive {
   std::vector<Pose2> route;
   std::vector<double> times;
-  std::string error;
+  EcuCanLog log;
+};
+
+LoopDrive load_loop_drive(const fs::path& dir) {
+  LoopDrive drive;
   {
     auto truth = loaded(replay::load_truth(dir / "frames.csv"));
-    route = std::move(truth.poses);
-    times = std::move(truth.times);
+    drive.route = std::move(truth.poses);
+    drive.times = std::move(truth.times);
   }
-  REQUIRE(times.size() == fixture::kFrames);
-  EcuCanLog log;
-  log = read_log(dir / "ecu-can.log");
-  const replay::TruthJudge judge(route, 5.0, 100.0);
-  const LoopScore score = score_loops(judge, times, log.loops);
+  REQUIRE(drive.times.size() == fixture::kFrames);
+  drive.log = read_log(dir / "ecu-can.log");
+  return drive;
+}
 
-  const replay::Evaluation& e = score.evaluation;
-  CHECK(e.correct == 1);
-  CHECK(e.wrong == 1);
-  CHECK(e.unjudged == 0);
-  // Second lap (segments 4..7) plus the end of the first, which comes back
-  // within 5 m of the start.
-  CHECK(e.revisit_segments == 5);
-  CHECK(e.revisit_segments_detected == 1);
-  // The other four are listed, each with the earlier frames it revisits.
-  REQUIRE(e.missed_stretches.size() == 4);
+// Each missed stretch comes after the one before and revisits earlier frames
+// within the judge's 5 m.
+void check_missed_stretches(const replay::Evaluation& e, const std::vector<Pose2>& route) {
   for (std::size_t i = 0; i < e.missed_stretches.size(); ++i) {
     const replay::MissedStretch& m = e.missed_stretches[i];
     INFO("missed stretch " << m.index);
@@ -138,13 +136,28 @@ TEST_CASE("loop detections are judged against the truth") {
                                                     route[m.first_frame].y - route[j].y) <= 5.0;
     CHECK(earlier_nearby);
   }
+}
+
+void check_loop_evaluation(const replay::Evaluation& e, const std::vector<Pose2>& route) {
+  CHECK(e.correct == 1);
+  CHECK(e.wrong == 1);
+  CHECK(e.unjudged == 0);
+  // Second lap (segments 4..7) plus the end of the first, which comes back
+  // within 5 m of the start.
+  CHECK(e.revisit_segments == 5);
+  CHECK(e.revisit_segments_detected == 1);
+  // The other four are listed, each with the earlier frames it revisits.
+  REQUIRE(e.missed_stretches.size() == 4);
+  check_missed_stretches(e, route);
   REQUIRE(e.pose_errors == 1);
   // True relative pose (3, 0, 0): the car at the query is 3 m ahead of the
   // car at the match. The reverse convention would give an error of 6 m.
   CHECK(e.translation_error_mean_m == Approx(0.4).margin(1e-6));
   CHECK(e.rotation_error_mean_deg == Approx(1.5).margin(1e-6));
   CHECK(e.translation_error_max_m == Approx(0.4).margin(1e-6));
+}
 
+void check_loop_outcomes(const LoopScore& score) {
   REQUIRE(score.outcomes.size() == 2);
   CHECK(score.outcomes[0].verdict == Verdict::Correct);
   CHECK(score.outcomes[0].true_distance_m == Approx(3.0));
@@ -154,7 +167,9 @@ TEST_CASE("loop detections are judged against the truth") {
   // the estimate (1 m ahead) is as far off as the places are apart.
   REQUIRE(score.outcomes[1].pose_error.has_value());
   CHECK(score.outcomes[1].pose_error->translation_m > 100.0);
+}
 
+void check_loop_latencies(const LoopScore& score) {
   CHECK(score.latency_s.count == 2);
   CHECK(score.latency_s.median == Approx((fixture::kLatency1_s + fixture::kLatency2_s) / 2).margin(1e-9));
   CHECK(score.latency_s.p99 == Approx(fixture::kLatency1_s).margin(1e-9));
@@ -163,6 +178,21 @@ TEST_CASE("loop detections are judged against the truth") {
   CHECK(score.processing_s.max == Approx(0.006005).margin(1e-9));
   CHECK(score.since_query_frame_s.median == Approx(score.latency_s.median).margin(1e-9));
   CHECK(score.query_time_inconsistent == 0);
+}
+
+}  // namespace
+
+TEST_CASE("loop detections are judged against the truth") {
+  const LoopDrive drive = load_loop_drive(fresh_dir("loops"));
+  const std::vector<Pose2>& route = drive.route;
+  const std::vector<double>& times = drive.times;
+  const EcuCanLog& log = drive.log;
+  const replay::TruthJudge judge(route, 5.0, 100.0);
+  const LoopScore score = score_loops(judge, times, log.loops);
+
+  check_loop_evaluation(score.evaluation, route);
+  check_loop_outcomes(score);
+  check_loop_latencies(score);
 
   SECTION("QueryTime is the frame that completed the detection; before QueryFrame is flagged") {
     std::vector<LoopReport> reports = log.loops;
@@ -246,42 +276,57 @@ TEST_CASE("marking detections are matched to visible markings one to one") {
   }
 }
 
-TEST_CASE("landmarks are placed by their offset from the car and each pass named by its landmark") {
-  // The car drives along x at 1 m a frame, 10 frames a second; from frame
-  // 400 on it starts again at x = 0 (a second visit).
-  std::vector<Pose2> route;
-  std::vector<double> times;
-  for (std::size_t f = 0; f < 800; ++f) {
-    route.push_back({f < 400 ? double(f) : double(f) - 400.0, 0.0, 0.0});
-    times.push_back(double(f) / 10.0);
-  }
+namespace {
+
+// A drive past known markings, what the ECU saw of them and the landmarks it
+// made of them, in the order its logs list them.
+class LandmarkScene {
+ public:
   const Label forward = label_of("forward"), leftturn = label_of("leftturn"), stop = label_of("stop"),
               bike = label_of("bike"), rail = label_of("rail"), ped = label_of("ped");
-  const std::vector<WorldMarking> world = {
-      {1, forward, 30.0, 0.0, 0.0},
-      {2, stop, 60.0, 1.0, 0.0},
-      {3, bike, 90.0, -2.0, 0.0},
-      {4, rail, 120.0, 0.0, 0.0},
-      {5, ped, 150.0, 8.0, 0.0},
-      {6, stop, 200.0, 0.0, 0.0},
-      {8, bike, 300.0, 0.0, 0.0},
-      {9, stop, 15.0, 0.0, 0.0},
-      {10, stop, 390.0, 0.0, 0.0},
-      {11, forward, 350.0, 0.0, 0.0},
-      {12, label_of("crosswalk"), 250.0, 0.0, 0.0},
-  };
-  // The ECU's odometry frame: turned and moved against the truth's.
-  const Pose2 drift{100.0, -40.0, 0.3};
+
+  std::vector<Pose2> route;
+  std::vector<double> times;
+  std::vector<WorldMarking> world;
   std::vector<LandmarkRecord> landmarks;
-  auto landmark = [&](Label label, std::uint32_t observations, FrameIndex first, FrameIndex last, double x,
-                      double y) {
+  // The rows of each marking in frame order, as in visible.csv.
+  std::vector<VisibleMarking> visible;
+  MarkingScore paired;
+  std::vector<DetectionRecord> detections;
+
+  LandmarkScene() {
+    // The car drives along x at 1 m a frame, 10 frames a second; from frame
+    // 400 on it starts again at x = 0 (a second visit).
+    for (std::size_t f = 0; f < 800; ++f) {
+      route.push_back({f < 400 ? double(f) : double(f) - 400.0, 0.0, 0.0});
+      times.push_back(double(f) / 10.0);
+    }
+    world = {
+        {1, forward, 30.0, 0.0, 0.0},
+        {2, stop, 60.0, 1.0, 0.0},
+        {3, bike, 90.0, -2.0, 0.0},
+        {4, rail, 120.0, 0.0, 0.0},
+        {5, ped, 150.0, 8.0, 0.0},
+        {6, stop, 200.0, 0.0, 0.0},
+        {8, bike, 300.0, 0.0, 0.0},
+        {9, stop, 15.0, 0.0, 0.0},
+        {10, stop, 390.0, 0.0, 0.0},
+        {11, forward, 350.0, 0.0, 0.0},
+        {12, label_of("crosswalk"), 250.0, 0.0, 0.0},
+    };
+  }
+
+  // A landmark at (x, y) on the truth's map, last seen at frame `last`, as the
+  // ECU records it in its own odometry frame.
+  void landmark(Label label, std::uint32_t observations, FrameIndex first, FrameIndex last, double x,
+                double y) {
     LandmarkRecord l;
     l.label = label;
     l.observations = observations;
     l.first_frame = first;
     l.last_frame = last;
-    const Pose2 car = compose(drift, route[last]);
-    const Pose2 at = compose(drift, Pose2{x, y, 0.0});
+    const Pose2 car = compose(drift_, route[last]);
+    const Pose2 at = compose(drift_, Pose2{x, y, 0.0});
     l.x = at.x;
     l.y = at.y;
     l.car_x = car.x;
@@ -289,83 +334,97 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
     l.car_yaw = car.yaw;
     l.has_car_pose = true;
     landmarks.push_back(l);
-  };
-  // The rows of each marking in frame order, as in visible.csv.
-  std::vector<VisibleMarking> visible;
-  MarkingScore paired;
-  auto show = [&](std::uint32_t id, Label label, FrameIndex frame, std::optional<Label> detected) {
+  }
+
+  // Marking `id` in view at `frame`, paired with a detection of `detected`.
+  void show(std::uint32_t id, Label label, FrameIndex frame, std::optional<Label> detected) {
     visible.push_back({frame, id, label, {}});
     paired.paired_label.push_back(detected);
-  };
-  // 1: 20..5 m ahead, a landmark of its class 0.3 m off. Seen again on the
-  // second visit (its own pass, its own landmark).
-  show(1, forward, 10, forward);
-  show(1, forward, 25, forward);
-  landmark(forward, 4, 10, 27, 30.3, 0.0);
-  // 2: two landmarks on it; the one with more observations is another class.
-  show(2, stop, 40, leftturn);
-  show(2, stop, 46, leftturn);
-  landmark(leftturn, 5, 40, 48, 60.0, 1.0);
-  landmark(stop, 3, 41, 47, 60.2, 1.1);
-  // 3: the first row lies 25 m ahead, out of range, but the pass counts by
-  // its second. Not shown in the frames between, it is detected once where
-  // it lies (a detection 5 m off is not its); no landmark.
-  show(3, bike, 65, std::nullopt);
-  show(3, bike, 80, bike);
-  std::vector<DetectionRecord> detections;
-  auto detect = [&](FrameIndex frame, Label label, double ahead, double left) {
+  }
+
+  void detect(FrameIndex frame, Label label, double ahead, double left) {
     DetectionRecord d;
     d.frame = frame;
     d.label = label;
     d.ground_x = ahead;
     d.ground_y = left;
     detections.push_back(d);
-  };
-  detect(70, bike, 19.5, -2.4);  // the car at x = 70: the marking 20 m ahead, 2 m right
-  detect(72, ped, 13.0, 3.0);
-  detect(80, bike, 10.0, -2.0);  // the detection paired with the visible row
+  }
+
+ private:
+  // The ECU's odometry frame: turned and moved against the truth's.
+  const Pose2 drift_{100.0, -40.0, 0.3};
+};
+
+// Each marking's rows, detections and landmarks, with the case each stands for.
+LandmarkScene landmark_scene() {
+  LandmarkScene s;
+  // 1: 20..5 m ahead, a landmark of its class 0.3 m off. Seen again on the
+  // second visit (its own pass, its own landmark).
+  s.show(1, s.forward, 10, s.forward);
+  s.show(1, s.forward, 25, s.forward);
+  s.landmark(s.forward, 4, 10, 27, 30.3, 0.0);
+  // 2: two landmarks on it; the one with more observations is another class.
+  s.show(2, s.stop, 40, s.leftturn);
+  s.show(2, s.stop, 46, s.leftturn);
+  s.landmark(s.leftturn, 5, 40, 48, 60.0, 1.0);
+  s.landmark(s.stop, 3, 41, 47, 60.2, 1.1);
+  // 3: the first row lies 25 m ahead, out of range, but the pass counts by
+  // its second. Not shown in the frames between, it is detected once where
+  // it lies (a detection 5 m off is not its); no landmark.
+  s.show(3, s.bike, 65, std::nullopt);
+  s.show(3, s.bike, 80, s.bike);
+  s.detect(70, s.bike, 19.5, -2.4);  // the car at x = 70: the marking 20 m ahead, 2 m right
+  s.detect(72, s.ped, 13.0, 3.0);
+  s.detect(80, s.bike, 10.0, -2.0);  // the detection paired with the visible row
   // 11: shown in one frame, detected again half a second later (the image
   // cuts it then); its landmark named right.
-  detect(345, forward, 5.2, 0.3);
-  paired.detection_paired = {false, false, true, false};
-  show(11, forward, 340, forward);
-  landmark(forward, 3, 340, 346, 350.0, 0.0);
+  s.detect(345, s.forward, 5.2, 0.3);
+  s.paired.detection_paired = {false, false, true, false};
+  s.show(11, s.forward, 340, s.forward);
+  s.landmark(s.forward, 3, 340, 346, 350.0, 0.0);
   // 8: a landmark of its class, but from other frames than the pass's.
-  show(8, bike, 290, bike);
-  landmark(bike, 3, 100, 110, 300.0, 0.0);
+  s.show(8, s.bike, 290, s.bike);
+  s.landmark(s.bike, 3, 100, 110, 300.0, 0.0);
   // 4: a landmark on it without the car's pose: not placed.
-  show(4, rail, 110, rail);
-  show(4, rail, 112, rail);
-  landmark(rail, 3, 110, 114, 120.0, 0.0);
-  landmarks.back().has_car_pose = false;
+  s.show(4, s.rail, 110, s.rail);
+  s.show(4, s.rail, 112, s.rail);
+  s.landmark(s.rail, 3, 110, 114, 120.0, 0.0);
+  s.landmarks.back().has_car_pose = false;
   // 5: 8 m to the side, never in range: not counted, though detected.
-  show(5, ped, 140, ped);
-  show(5, ped, 141, ped);
+  s.show(5, s.ped, 140, s.ped);
+  s.show(5, s.ped, 141, s.ped);
   // 6: in range, never detected; 4 s apart is still one pass.
-  show(6, stop, 185, std::nullopt);
-  show(6, stop, 225, std::nullopt);
+  s.show(6, s.stop, 185, std::nullopt);
+  s.show(6, s.stop, 225, std::nullopt);
   // 7: not in the world: not judged.
-  show(7, stop, 190, stop);
-  show(1, forward, 410, forward);
-  show(1, forward, 420, forward);
-  landmark(forward, 6, 410, 428, 30.0, 0.0);
+  s.show(7, s.stop, 190, s.stop);
+  s.show(1, s.forward, 410, s.forward);
+  s.show(1, s.forward, 420, s.forward);
+  s.landmark(s.forward, 6, 410, 428, 30.0, 0.0);
   // 9: in view at the drive's first frame; 10: passed 24 m before its end.
-  show(9, stop, 0, stop);
-  show(9, stop, 1, stop);
-  show(10, stop, 775, std::nullopt);
+  s.show(9, s.stop, 0, s.stop);
+  s.show(9, s.stop, 1, s.stop);
+  s.show(10, s.stop, 775, std::nullopt);
   // A landmark on no marking, and one on the crosswalk where it crosses the
   // next lane (3.5 m from its centre, across the road).
-  landmark(ped, 3, 500, 510, 130.0, 4.0);
-  landmark(label_of("crosswalk"), 5, 240, 248, 250.2, 3.5);
+  s.landmark(s.ped, 3, 500, 510, 130.0, 4.0);
+  s.landmark(label_of("crosswalk"), 5, 240, 248, 250.2, 3.5);
+  return s;
+}
 
-  const LandmarkScore placed = score_landmarks(world, route, landmarks);
+}  // namespace
+
+TEST_CASE("landmarks are placed by their offset from the car") {
+  const LandmarkScene s = landmark_scene();
+  const LandmarkScore placed = score_landmarks(s.world, s.route, s.landmarks);
   CHECK(placed.landmarks == 9);
   CHECK(placed.without_pose == 1);
   CHECK(placed.right_label == 6);
   CHECK(placed.wrong_label == 1);
   CHECK(placed.on_nothing == 1);
   REQUIRE(placed.marking_of[0].has_value());
-  CHECK(world[*placed.marking_of[0]].id == 1);
+  CHECK(s.world[*placed.marking_of[0]].id == 1);
   CHECK(placed.distance_m.max == Approx(0.3).margin(1e-6));
   CHECK_FALSE(placed.marking_of[7].has_value());
   // Listed for the reader: the leftturn on the stop line, and the ped on no
@@ -375,21 +434,26 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
   CHECK(placed.misplaced[0].x == Approx(60.0).margin(1e-6));
   CHECK(placed.misplaced[0].y == Approx(1.0).margin(1e-6));
   REQUIRE(placed.misplaced[0].nearest.has_value());
-  CHECK(world[*placed.misplaced[0].nearest].id == 2);
+  CHECK(s.world[*placed.misplaced[0].nearest].id == 2);
   CHECK(placed.misplaced[1].landmark == 7);
   REQUIRE(placed.misplaced[1].nearest.has_value());
-  CHECK(world[*placed.misplaced[1].nearest].id == 4);
+  CHECK(s.world[*placed.misplaced[1].nearest].id == 4);
   CHECK(placed.misplaced[1].distance_m == Approx(std::hypot(10.0, 4.0)).margin(1e-6));
+}
 
-  const PassScore score = score_passes(world, route, times, visible, detections, paired, landmarks, placed);
+TEST_CASE("each pass of a marking is named by its landmark") {
+  const LandmarkScene s = landmark_scene();
+  const LandmarkScore placed = score_landmarks(s.world, s.route, s.landmarks);
+  const PassScore score =
+      score_passes(s.world, s.route, s.times, s.visible, s.detections, s.paired, s.landmarks, placed);
   REQUIRE(score.passes.size() == 8);
   CHECK(score.cut_by_drive_ends == 2);
   CHECK(score.count(PassOutcome::NamedRight) == 3);
   CHECK(score.count(PassOutcome::NamedWrong) == 1);
   CHECK(score.count(PassOutcome::NoLandmark) == 4);
-  CHECK(score.passes_of_class[forward] == 3);
-  CHECK(score.named_right_of_class[forward] == 3);
-  CHECK(score.passes_of_class[ped] == 0);
+  CHECK(score.passes_of_class[s.forward] == 3);
+  CHECK(score.named_right_of_class[s.forward] == 3);
+  CHECK(score.passes_of_class[s.ped] == 0);
 
   const MarkingPass& first = score.passes[0];
   CHECK(first.id == 1);
@@ -399,7 +463,7 @@ TEST_CASE("landmarks are placed by their offset from the car and each pass named
   CHECK(first.outcome == PassOutcome::NamedRight);
   const MarkingPass& two_landmarks = score.passes[1];
   CHECK(two_landmarks.outcome == PassOutcome::NamedWrong);
-  CHECK(two_landmarks.named == leftturn);
+  CHECK(two_landmarks.named == s.leftturn);
   const MarkingPass& not_shown = score.passes[2];
   CHECK(not_shown.id == 3);
   CHECK(not_shown.detections == 2);

@@ -279,129 +279,113 @@ TEST_CASE("corrupted CRC and alive counter are rejected and counted") {
   CHECK(other == 0);
 }
 
-TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms periodic send") {
-  constexpr std::uint32_t kMarkerId = 0x18FF0010;  // extended: cangen -I r sends standard ids only
-  const CanFrame ready = make_frame(0x18FF07FE, true, {'R'});
-  const CanFrame end = make_frame(0x18FF07FE, true, {'E'});
-  constexpr int kCycles = 30;
-  constexpr auto kPeriod = 100ms;
+namespace {
 
-  SocketCan rx, status_tx, injector, flood_rx;
-  const CanFilter marker_filter[] = {CanFilter::exact(kMarkerId, true)};
+// The flood test's bus: markers on an extended id (cangen -I r sends standard
+// ids only), status frames every period, and its own capture markers.
+constexpr std::uint32_t kFloodMarkerId = 0x18FF0010;
+const CanFrame kFloodReady = make_frame(0x18FF07FE, true, {'R'});
+const CanFrame kFloodEnd = make_frame(0x18FF07FE, true, {'E'});
+constexpr int kFloodCycles = 30;
+constexpr auto kFloodPeriod = 100ms;
+
+// The receiver filtered to the markers, the status sender, the marker
+// injector and an unfiltered receiver that counts the flood.
+void open_flood_sockets(SocketCan& rx, SocketCan& status_tx, SocketCan& injector, SocketCan& flood_rx) {
+  const CanFilter marker_filter[] = {CanFilter::exact(kFloodMarkerId, true)};
   REQUIRE_FALSE(rx.open(can_if(), marker_filter));
   REQUIRE_FALSE(status_tx.open(can_if(), {}));
   REQUIRE_FALSE(injector.open(can_if(), {}));
   const CanFilter all_standard[] = {CanFilter{0, 0, false}};
   REQUIRE_FALSE(flood_rx.open(can_if(), all_standard));
+}
 
-  CandumpCapture capture("status_under_flood", "2B0:7FF,18FF07FE:1FFFFFFF");
-  REQUIRE(capture.sync(status_tx, ready));
-
-  std::atomic<bool> stop{false};
-  std::atomic<std::uint64_t> flood_seen{0};
-  std::thread flood_counter([&] {
-    CanFrame f;
-    while (!stop.load()) {
-      if (!flood_rx.receive(f)) {
-        ++flood_seen;
-        continue;
-      }
-      (void)flood_rx.poll_readable(20ms);
+// Counts every frame `flood_rx` receives until `stop`.
+void count_flood(SocketCan& flood_rx, const std::atomic<bool>& stop, std::atomic<std::uint64_t>& flood_seen) {
+  CanFrame f;
+  while (!stop.load()) {
+    if (!flood_rx.receive(f)) {
+      ++flood_seen;
+      continue;
     }
-  });
+    (void)flood_rx.poll_readable(20ms);
+  }
+}
 
-  Process cangen(
-      {"sh", "-c", "while :; do cangen " + can_if() + " -g 0 -I r -L r -D r -n 20000 || exit 1; done"},
-      results_dir() + "/cangen.out");
-  REQUIRE(cangen.started());
-  std::this_thread::sleep_for(200ms);  // the flood is running before the first cycle
-
-  // The periodic sender: absolute deadlines, never relative sleeps.
-  std::vector<std::int64_t> lateness_ns;
-  std::atomic<int> send_errors{0};
-  std::thread status_thread([&] {
-    dbc::E2eSenderState e2e;
-    dbc::Status status;
-    status.system_state = dbc::SystemState::Running;
-    timespec next{};
-    clock_gettime(CLOCK_MONOTONIC, &next);
-    for (int cycle = 0; cycle < kCycles; ++cycle) {
-      // tv_nsec is a long on 32-bit targets; the period is far below a second.
-      next.tv_nsec += static_cast<decltype(next.tv_nsec)>(std::chrono::nanoseconds(kPeriod).count());
-      while (next.tv_nsec >= 1'000'000'000) {
-        next.tv_nsec -= 1'000'000'000;
-        ++next.tv_sec;
-      }
-      while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr) == EINTR) {
-      }
-      timespec now{};
-      clock_gettime(CLOCK_MONOTONIC, &now);
-      lateness_ns.push_back((now.tv_sec - next.tv_sec) * 1'000'000'000LL + (now.tv_nsec - next.tv_nsec));
-      status.frames_processed = static_cast<std::uint32_t>(cycle);
-      for (const dbc::StatusPage page : dbc::Status::kPages) {
-        status.status_page = page;
-        if (status_tx.send(from_dbc(dbc::encode_frame(status, e2e)))) ++send_errors;
-      }
+// The periodic sender: absolute deadlines, never relative sleeps.
+void send_status_cycles(SocketCan& status_tx, std::vector<std::int64_t>& lateness_ns,
+                        std::atomic<int>& send_errors) {
+  dbc::E2eSenderState e2e;
+  dbc::Status status;
+  status.system_state = dbc::SystemState::Running;
+  timespec next{};
+  clock_gettime(CLOCK_MONOTONIC, &next);
+  for (int cycle = 0; cycle < kFloodCycles; ++cycle) {
+    // tv_nsec is a long on 32-bit targets; the period is far below a second.
+    next.tv_nsec += static_cast<decltype(next.tv_nsec)>(std::chrono::nanoseconds(kFloodPeriod).count());
+    while (next.tv_nsec >= 1'000'000'000) {
+      next.tv_nsec -= 1'000'000'000;
+      ++next.tv_sec;
     }
-  });
-
-  // Markers every 10 ms while the status thread runs; the receive loop runs here.
-  std::atomic<int> markers_sent{0};
-  std::thread marker_thread([&] {
-    std::uint16_t seq = 0;
-    while (!stop.load()) {
-      const CanFrame f = make_frame(
-          kMarkerId, true, {static_cast<std::uint8_t>(seq >> 8), static_cast<std::uint8_t>(seq & 0xFF)});
-      if (!injector.send(f)) {
-        ++seq;
-        ++markers_sent;
-      }
-      std::this_thread::sleep_for(10ms);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr) == EINTR) {
     }
-  });
+    timespec now{};
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    lateness_ns.push_back((now.tv_sec - next.tv_sec) * 1'000'000'000LL + (now.tv_nsec - next.tv_nsec));
+    status.frames_processed = static_cast<std::uint32_t>(cycle);
+    for (const dbc::StatusPage page : dbc::Status::kPages) {
+      status.status_page = page;
+      if (status_tx.send(from_dbc(dbc::encode_frame(status, e2e)))) ++send_errors;
+    }
+  }
+}
+
+// Sends numbered markers every 10 ms until `stop`.
+void send_markers(SocketCan& injector, const std::atomic<bool>& stop, std::atomic<int>& markers_sent) {
+  std::uint16_t seq = 0;
+  while (!stop.load()) {
+    const CanFrame f = make_frame(
+        kFloodMarkerId, true, {static_cast<std::uint8_t>(seq >> 8), static_cast<std::uint8_t>(seq & 0xFF)});
+    if (!injector.send(f)) {
+      ++seq;
+      ++markers_sent;
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+}
+
+struct MarkersReceived {
   std::vector<std::uint16_t> markers;
   std::uint64_t wrong_ids = 0;
-  auto drain = [&] {
-    CanFrame f;
-    while (!rx.receive(f)) {
-      if (!f.extended || f.id != kMarkerId || f.dlc != 2)
-        ++wrong_ids;
-      else
-        markers.push_back(static_cast<std::uint16_t>((f.data[0] << 8) | f.data[1]));
-    }
-  };
-  const auto loop_end = std::chrono::steady_clock::now() + kPeriod * (kCycles + 1);
-  while (std::chrono::steady_clock::now() < loop_end) {
-    (void)rx.poll_readable(50ms);
-    drain();
-  }
-  status_thread.join();
-  stop = true;
-  marker_thread.join();
-  cangen.stop();
-  flood_counter.join();
-  std::this_thread::sleep_for(100ms);
-  drain();
-  REQUIRE(capture.sync(status_tx, end));
-  const auto records = parse_all(capture.stop());
+};
 
-  // Receive path: exactly the markers, all of them, in order.
-  print_counters("flood rx", rx);
-  print_counters("flood counter", flood_rx);
-  std::cout << "flood: frames seen by an unfiltered socket " << flood_seen.load() << ", markers sent "
-            << markers_sent.load() << ", received " << markers.size() << "\n";
-  CHECK(flood_seen.load() > 10000);  // the flood really happened
-  CHECK(wrong_ids == 0);
-  CHECK(markers.size() == static_cast<std::size_t>(markers_sent.load()));
+// Takes every frame waiting at `rx`: a marker's number, or any other frame as
+// one the filter should have kept out.
+void drain_markers(SocketCan& rx, MarkersReceived& received) {
+  CanFrame f;
+  while (!rx.receive(f)) {
+    if (!f.extended || f.id != kFloodMarkerId || f.dlc != 2)
+      ++received.wrong_ids;
+    else
+      received.markers.push_back(static_cast<std::uint16_t>((f.data[0] << 8) | f.data[1]));
+  }
+}
+
+// Receive path: exactly the markers, all of them, in order.
+void check_markers_received(const SocketCan& rx, const MarkersReceived& received, int markers_sent) {
+  const std::vector<std::uint16_t>& markers = received.markers;
+  CHECK(received.wrong_ids == 0);
+  CHECK(markers.size() == static_cast<std::size_t>(markers_sent));
   for (std::size_t k = 0; k < markers.size(); ++k) CHECK(markers[k] == k);
   CHECK(rx.counters().rx_frames == markers.size());
   CHECK(rx.counters().rx_dropped == 0);
-  CHECK(send_errors.load() == 0);
+}
 
-  // Transmit cycle, measured from candump's kernel timestamps: the first
-  // page of each cycle. cangen may hit 0x2B0 with a payload whose CRC
-  // happens to pass (about one run in a hundred), so a frame counts only
-  // when it also carries the next cycle number the status thread sent.
+// The kernel timestamps of the first page of each status cycle. cangen may
+// hit 0x2B0 with a payload whose CRC happens to pass (about one run in a
+// hundred), so a frame counts only when it also carries the next cycle
+// number the status thread sent.
+std::vector<std::int64_t> status_cycle_stamps(const std::vector<CandumpRecord>& records) {
   std::vector<std::int64_t> stamps;
   for (const auto& r : records) {
     if (r.frame.extended || r.frame.id != dbc::Status::kId) continue;
@@ -411,24 +395,84 @@ TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms perio
         s.frames_processed == stamps.size())
       stamps.push_back(r.frame.timestamp_ns);
   }
-  REQUIRE(stamps.size() == static_cast<std::size_t>(kCycles));
+  return stamps;
+}
+
+// Transmit cycle, measured from candump's kernel timestamps.
+void check_status_cycle(const std::vector<CandumpRecord>& records,
+                        const std::vector<std::int64_t>& lateness_ns) {
+  const std::vector<std::int64_t> stamps = status_cycle_stamps(records);
+  REQUIRE(stamps.size() == static_cast<std::size_t>(kFloodCycles));
   std::int64_t worst = 0;
   for (std::size_t k = 1; k < stamps.size(); ++k) {
-    const std::int64_t dev = stamps[k] - stamps[k - 1] - std::chrono::nanoseconds(kPeriod).count();
+    const std::int64_t dev = stamps[k] - stamps[k - 1] - std::chrono::nanoseconds(kFloodPeriod).count();
     worst = std::max(worst, std::abs(dev));
   }
   const std::int64_t span = stamps.back() - stamps.front();
-  const std::int64_t drift = span - (kCycles - 1) * std::chrono::nanoseconds(kPeriod).count();
+  const std::int64_t drift = span - (kFloodCycles - 1) * std::chrono::nanoseconds(kFloodPeriod).count();
   const std::int64_t late_max = *std::max_element(lateness_ns.begin(), lateness_ns.end());
   std::cout << "status cycle under flood: worst period deviation " << worst / 1000 << " us, drift over "
-            << kCycles - 1 << " cycles " << drift / 1000 << " us, worst wake-up lateness " << late_max / 1000
-            << " us\n";
+            << kFloodCycles - 1 << " cycles " << drift / 1000 << " us, worst wake-up lateness "
+            << late_max / 1000 << " us\n";
   // Bounds for a TCG-emulated guest sharing 2 host cores with the flood:
   // generous against scheduling noise (44 ms seen once with the host busy
   // beside the VM), half a cycle (a missed or doubled cycle would be
   // >= 100 ms).
   CHECK(worst < 50'000'000);
   CHECK(std::abs(drift) < 30'000'000);  // absolute deadlines: no accumulated drift
+}
+
+}  // namespace
+
+TEST_CASE("a cangen flood disturbs neither the receive filter nor a 100 ms periodic send") {
+  SocketCan rx, status_tx, injector, flood_rx;
+  open_flood_sockets(rx, status_tx, injector, flood_rx);
+
+  CandumpCapture capture("status_under_flood", "2B0:7FF,18FF07FE:1FFFFFFF");
+  REQUIRE(capture.sync(status_tx, kFloodReady));
+
+  std::atomic<bool> stop{false};
+  std::atomic<std::uint64_t> flood_seen{0};
+  std::thread flood_counter([&] { count_flood(flood_rx, stop, flood_seen); });
+
+  Process cangen(
+      {"sh", "-c", "while :; do cangen " + can_if() + " -g 0 -I r -L r -D r -n 20000 || exit 1; done"},
+      results_dir() + "/cangen.out");
+  REQUIRE(cangen.started());
+  std::this_thread::sleep_for(200ms);  // the flood is running before the first cycle
+
+  std::vector<std::int64_t> lateness_ns;
+  std::atomic<int> send_errors{0};
+  std::thread status_thread([&] { send_status_cycles(status_tx, lateness_ns, send_errors); });
+
+  // Markers every 10 ms while the status thread runs; the receive loop runs here.
+  std::atomic<int> markers_sent{0};
+  std::thread marker_thread([&] { send_markers(injector, stop, markers_sent); });
+  MarkersReceived received;
+  const auto loop_end = std::chrono::steady_clock::now() + kFloodPeriod * (kFloodCycles + 1);
+  while (std::chrono::steady_clock::now() < loop_end) {
+    (void)rx.poll_readable(50ms);
+    drain_markers(rx, received);
+  }
+  status_thread.join();
+  stop = true;
+  marker_thread.join();
+  cangen.stop();
+  flood_counter.join();
+  std::this_thread::sleep_for(100ms);
+  drain_markers(rx, received);
+  REQUIRE(capture.sync(status_tx, kFloodEnd));
+  const auto records = parse_all(capture.stop());
+
+  print_counters("flood rx", rx);
+  print_counters("flood counter", flood_rx);
+  std::cout << "flood: frames seen by an unfiltered socket " << flood_seen.load() << ", markers sent "
+            << markers_sent.load() << ", received " << received.markers.size() << "\n";
+  CHECK(flood_seen.load() > 10000);  // the flood really happened
+  check_markers_received(rx, received, markers_sent.load());
+  CHECK(send_errors.load() == 0);
+
+  check_status_cycle(records, lateness_ns);
 }
 
 TEST_CASE("interface down and up again is survived") {

@@ -69,25 +69,173 @@ std::vector<float> random_values(std::mt19937& rng, int n, float scale) {
 
 constexpr float kAlwaysRun = 2.0f;  // no MLP reject probability reaches it: the networks always run
 
+using Probabilities = std::array<float, kClassifierOutputs>;
+
+// Random weights for each layer of one network, drawn in the layers' order.
+struct RandomWeights {
+  std::vector<float> conv1_w, conv1_b, conv2_w, conv2_b, conv3_w, conv3_b, shape_mean, shape_inv_std, fc1_w,
+      fc1_b, fc2_w, fc2_b;
+
+  explicit RandomWeights(std::mt19937& rng)
+      : conv1_w(random_values(rng, kCnnChannels1 * kCnnInputChannels * 9, 0.5f)),
+        conv1_b(random_values(rng, kCnnChannels1, 0.1f)),
+        conv2_w(random_values(rng, kCnnChannels2 * kCnnChannels1 * 9, 0.3f)),
+        conv2_b(random_values(rng, kCnnChannels2, 0.1f)),
+        conv3_w(random_values(rng, kCnnChannels3 * kCnnChannels2 * 9, 0.2f)),
+        conv3_b(random_values(rng, kCnnChannels3, 0.1f)),
+        shape_mean(random_values(rng, kShapeFeatures, 1.0f)),
+        shape_inv_std(kShapeFeatures, 0.7f),
+        fc1_w(random_values(rng, kCnnHidden * kCnnHeadInputs, 0.05f)),
+        fc1_b(random_values(rng, kCnnHidden, 0.1f)),
+        fc2_w(random_values(rng, kClassifierOutputs * kCnnHidden, 0.3f)),
+        fc2_b(random_values(rng, kClassifierOutputs, 0.1f)) {}
+
+  // The network on these weights; valid while they live.
+  CnnNet net() const {
+    return CnnNet{conv1_w.data(), conv1_b.data(), conv2_w.data(),    conv2_b.data(),
+                  conv3_w.data(), conv3_b.data(), shape_mean.data(), shape_inv_std.data(),
+                  fc1_w.data(),   fc1_b.data(),   fc2_w.data(),      fc2_b.data()};
+  }
+};
+
+// What the classifier is given: a patch and features at random, and its scratch.
+struct ClassifierInputs {
+  PatchScratch patch;
+  Features features{};
+  CnnScratch scratch;
+
+  explicit ClassifierInputs(std::mt19937& rng) {
+    std::normal_distribution<float> grey(0.0f, 1.0f);
+    std::uniform_int_distribution<int> paint(0, 255);
+    for (float& g : patch.grey) g = grey(rng);
+    for (float& p : patch.paint) p = static_cast<float>(paint(rng)) / 255.0f;
+    for (float& f : features) f = grey(rng);
+  }
+};
+
+// The head's inputs: the third convolution's output, then the normalised
+// shape features.
+std::vector<double> reference_head(const RandomWeights& w, const ClassifierInputs& in) {
+  Tensor input(kCnnInputChannels, kPatchRows, kPatchCols);
+  for (int r = 0; r < kPatchRows; ++r)
+    for (int c = 0; c < kPatchCols; ++c) {
+      input.at(0, r, c) = in.patch.grey[static_cast<std::size_t>(r * kPatchCols + c)];
+      input.at(1, r, c) = in.patch.paint[static_cast<std::size_t>(r * kPatchCols + c)];
+    }
+  const Tensor layer3 =
+      conv_relu(max_pool(conv_relu(max_pool(conv_relu(input, w.conv1_w, w.conv1_b, kCnnChannels1)), w.conv2_w,
+                                   w.conv2_b, kCnnChannels2)),
+                w.conv3_w, w.conv3_b, kCnnChannels3);
+  std::vector<double> head(layer3.v.begin(), layer3.v.end());
+  for (int i = 0; i < kShapeFeatures; ++i)
+    head.push_back((in.features[static_cast<std::size_t>(kFeatureCount - kShapeFeatures + i)] -
+                    w.shape_mean[static_cast<std::size_t>(i)]) *
+                   w.shape_inv_std[static_cast<std::size_t>(i)]);
+  return head;
+}
+
+// The reference network's exponentiated logits and their sum.
+struct ReferenceOutputs {
+  std::vector<double> logits;
+  double total = 0.0;
+};
+
+ReferenceOutputs reference_outputs(const RandomWeights& w, const ClassifierInputs& in) {
+  const std::vector<double> head = reference_head(w, in);
+  REQUIRE(head.size() == static_cast<std::size_t>(kCnnHeadInputs));
+  std::vector<double> hidden(kCnnHidden);
+  ReferenceOutputs out{std::vector<double>(kClassifierOutputs), 0.0};
+  for (int j = 0; j < kCnnHidden; ++j) {
+    double s = w.fc1_b[static_cast<std::size_t>(j)];
+    for (int i = 0; i < kCnnHeadInputs; ++i)
+      s += w.fc1_w[static_cast<std::size_t>(j * kCnnHeadInputs + i)] * head[static_cast<std::size_t>(i)];
+    hidden[static_cast<std::size_t>(j)] = std::max(s, 0.0);
+  }
+  for (int k = 0; k < kClassifierOutputs; ++k) {
+    double s = w.fc2_b[static_cast<std::size_t>(k)];
+    for (int j = 0; j < kCnnHidden; ++j)
+      s += w.fc2_w[static_cast<std::size_t>(k * kCnnHidden + j)] * hidden[static_cast<std::size_t>(j)];
+    out.logits[static_cast<std::size_t>(k)] = std::exp(s);
+    out.total += out.logits[static_cast<std::size_t>(k)];
+  }
+  return out;
+}
+
+// The network alone (share 1): the reference's softmax and its best class.
+void check_network_alone(const CnnModel& one, ClassifierInputs& in, const ReferenceOutputs& reference,
+                         Probabilities& from_net) {
+  const std::vector<double>& logits = reference.logits;
+  const int best =
+      classify(builtin_marking_model(), &one, 1.0f, kAlwaysRun, in.features, in.patch, in.scratch, from_net);
+  int expected_best = 0;
+  for (int k = 0; k < kClassifierOutputs; ++k) {
+    CHECK(from_net[static_cast<std::size_t>(k)] ==
+          Catch::Approx(logits[static_cast<std::size_t>(k)] / reference.total).margin(1e-5));
+    if (logits[static_cast<std::size_t>(k)] > logits[static_cast<std::size_t>(expected_best)])
+      expected_best = k;
+  }
+  CHECK(best == expected_best);
+}
+
+// Blended half and half with the MLPs: their geometric mean, normalised.
+void check_blend_with_mlps(const CnnModel& one, ClassifierInputs& in, const Probabilities& from_net,
+                           const Probabilities& from_mlps, Probabilities& blended) {
+  const int blended_best =
+      classify(builtin_marking_model(), &one, 0.5f, kAlwaysRun, in.features, in.patch, in.scratch, blended);
+  std::array<double, kClassifierOutputs> product;
+  double product_total = 0.0;
+  for (std::size_t k = 0; k < product.size(); ++k) {
+    product[k] = std::sqrt(std::max(double{from_net[k]}, 1e-12) * std::max(double{from_mlps[k]}, 1e-12));
+    product_total += product[k];
+  }
+  for (std::size_t k = 0; k < product.size(); ++k)
+    CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
+  CHECK(blended_best == static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
+}
+
+// Two networks share the network's half alike: mlp^(1/2) net^(1/4) other^(1/4).
+void check_two_networks(const CnnModel& two, const CnnNet& other, ClassifierInputs& in,
+                        const Probabilities& from_net, const Probabilities& from_mlps,
+                        Probabilities& blended) {
+  std::array<float, kClassifierOutputs> from_other;
+  classify(builtin_marking_model(), &two, 0.0f, kAlwaysRun, in.features, in.patch, in.scratch, blended);
+  CHECK(blended == from_mlps);
+  const CnnModel other_alone{1, {other}};
+  classify(builtin_marking_model(), &other_alone, 1.0f, kAlwaysRun, in.features, in.patch, in.scratch,
+           from_other);
+  const int ensemble_best =
+      classify(builtin_marking_model(), &two, 0.5f, kAlwaysRun, in.features, in.patch, in.scratch, blended);
+  std::array<double, kClassifierOutputs> product;
+  double product_total = 0.0;
+  for (std::size_t k = 0; k < product.size(); ++k) {
+    product[k] =
+        std::sqrt(std::max(double{from_mlps[k]}, 1e-12)) *
+        std::pow(std::max(double{from_net[k]}, 1e-12) * std::max(double{from_other[k]}, 1e-12), 0.25);
+    product_total += product[k];
+  }
+  for (std::size_t k = 0; k < product.size(); ++k)
+    CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
+  CHECK(ensemble_best ==
+        static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
+}
+
+// The networks skipped where the MLPs' reject reaches the bound: the MLPs' own.
+void check_networks_skipped_at_reject_bound(const CnnModel& two, ClassifierInputs& in,
+                                            const Probabilities& from_mlps, Probabilities& blended) {
+  const float mlp_reject = from_mlps[static_cast<std::size_t>(kRejectClass)];
+  classify(builtin_marking_model(), &two, 0.5f, mlp_reject, in.features, in.patch, in.scratch, blended);
+  CHECK(blended == from_mlps);
+  classify(builtin_marking_model(), &two, 0.5f, std::nextafter(mlp_reject, 2.0f), in.features, in.patch,
+           in.scratch, blended);
+  CHECK(blended != from_mlps);
+}
+
 }  // namespace
 
 TEST_CASE("the network's probabilities are those of its layers written out plainly") {
   std::mt19937 rng(7);
-  const auto conv1_w = random_values(rng, kCnnChannels1 * kCnnInputChannels * 9, 0.5f);
-  const auto conv1_b = random_values(rng, kCnnChannels1, 0.1f);
-  const auto conv2_w = random_values(rng, kCnnChannels2 * kCnnChannels1 * 9, 0.3f);
-  const auto conv2_b = random_values(rng, kCnnChannels2, 0.1f);
-  const auto conv3_w = random_values(rng, kCnnChannels3 * kCnnChannels2 * 9, 0.2f);
-  const auto conv3_b = random_values(rng, kCnnChannels3, 0.1f);
-  const auto shape_mean = random_values(rng, kShapeFeatures, 1.0f);
-  std::vector<float> shape_inv_std(kShapeFeatures, 0.7f);
-  const auto fc1_w = random_values(rng, kCnnHidden * kCnnHeadInputs, 0.05f);
-  const auto fc1_b = random_values(rng, kCnnHidden, 0.1f);
-  const auto fc2_w = random_values(rng, kClassifierOutputs * kCnnHidden, 0.3f);
-  const auto fc2_b = random_values(rng, kClassifierOutputs, 0.1f);
-  const CnnNet net{conv1_w.data(), conv1_b.data(), conv2_w.data(),    conv2_b.data(),
-                   conv3_w.data(), conv3_b.data(), shape_mean.data(), shape_inv_std.data(),
-                   fc1_w.data(),   fc1_b.data(),   fc2_w.data(),      fc2_b.data()};
+  const RandomWeights weights(rng);
+  const CnnNet net = weights.net();
   const CnnModel one{1, {net}};
   // A second member: the same layers, other output weights.
   const auto fc2_w_other = random_values(rng, kClassifierOutputs * kCnnHidden, 0.3f);
@@ -101,101 +249,17 @@ TEST_CASE("the network's probabilities are those of its layers written out plain
   REQUIRE_FALSE(cnn_is_usable(CnnModel{}));
   REQUIRE_FALSE(cnn_is_usable(CnnModel{2, {net, CnnNet{}}}));
 
-  PatchScratch patch;
-  std::normal_distribution<float> grey(0.0f, 1.0f);
-  std::uniform_int_distribution<int> paint(0, 255);
-  for (float& g : patch.grey) g = grey(rng);
-  for (float& p : patch.paint) p = static_cast<float>(paint(rng)) / 255.0f;
-  Features features{};
-  for (float& f : features) f = grey(rng);
+  ClassifierInputs in(rng);
+  const ReferenceOutputs reference = reference_outputs(weights, in);
 
-  // The reference.
-  Tensor input(kCnnInputChannels, kPatchRows, kPatchCols);
-  for (int r = 0; r < kPatchRows; ++r)
-    for (int c = 0; c < kPatchCols; ++c) {
-      input.at(0, r, c) = patch.grey[static_cast<std::size_t>(r * kPatchCols + c)];
-      input.at(1, r, c) = patch.paint[static_cast<std::size_t>(r * kPatchCols + c)];
-    }
-  const Tensor layer3 =
-      conv_relu(max_pool(conv_relu(max_pool(conv_relu(input, conv1_w, conv1_b, kCnnChannels1)), conv2_w,
-                                   conv2_b, kCnnChannels2)),
-                conv3_w, conv3_b, kCnnChannels3);
-  std::vector<double> head(layer3.v.begin(), layer3.v.end());
-  for (int i = 0; i < kShapeFeatures; ++i)
-    head.push_back((features[static_cast<std::size_t>(kFeatureCount - kShapeFeatures + i)] -
-                    shape_mean[static_cast<std::size_t>(i)]) *
-                   shape_inv_std[static_cast<std::size_t>(i)]);
-  REQUIRE(head.size() == static_cast<std::size_t>(kCnnHeadInputs));
-  std::vector<double> hidden(kCnnHidden), logits(kClassifierOutputs);
-  for (int j = 0; j < kCnnHidden; ++j) {
-    double s = fc1_b[static_cast<std::size_t>(j)];
-    for (int i = 0; i < kCnnHeadInputs; ++i)
-      s += fc1_w[static_cast<std::size_t>(j * kCnnHeadInputs + i)] * head[static_cast<std::size_t>(i)];
-    hidden[static_cast<std::size_t>(j)] = std::max(s, 0.0);
-  }
-  double total = 0.0;
-  for (int k = 0; k < kClassifierOutputs; ++k) {
-    double s = fc2_b[static_cast<std::size_t>(k)];
-    for (int j = 0; j < kCnnHidden; ++j)
-      s += fc2_w[static_cast<std::size_t>(k * kCnnHidden + j)] * hidden[static_cast<std::size_t>(j)];
-    logits[static_cast<std::size_t>(k)] = std::exp(s);
-    total += logits[static_cast<std::size_t>(k)];
-  }
-
-  // The network alone (share 1), then blended half and half with the MLPs
-  // (their geometric mean, normalised).
-  std::array<float, kClassifierOutputs> from_net, from_mlps, blended;
-  CnnScratch scratch;
-  const int best =
-      classify(builtin_marking_model(), &one, 1.0f, kAlwaysRun, features, patch, scratch, from_net);
-  int expected_best = 0;
-  for (int k = 0; k < kClassifierOutputs; ++k) {
-    CHECK(from_net[static_cast<std::size_t>(k)] ==
-          Catch::Approx(logits[static_cast<std::size_t>(k)] / total).margin(1e-5));
-    if (logits[static_cast<std::size_t>(k)] > logits[static_cast<std::size_t>(expected_best)])
-      expected_best = k;
-  }
-  CHECK(best == expected_best);
-  classify(builtin_marking_model(), features, from_mlps);
-  const int blended_best =
-      classify(builtin_marking_model(), &one, 0.5f, kAlwaysRun, features, patch, scratch, blended);
-  std::array<double, kClassifierOutputs> product;
-  double product_total = 0.0;
-  for (std::size_t k = 0; k < product.size(); ++k) {
-    product[k] = std::sqrt(std::max(double{from_net[k]}, 1e-12) * std::max(double{from_mlps[k]}, 1e-12));
-    product_total += product[k];
-  }
-  for (std::size_t k = 0; k < product.size(); ++k)
-    CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
-  CHECK(blended_best == static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
-  // Two networks share the network's half alike: mlp^(1/2) net^(1/4) other^(1/4).
-  std::array<float, kClassifierOutputs> from_other;
-  classify(builtin_marking_model(), &two, 0.0f, kAlwaysRun, features, patch, scratch, blended);
-  CHECK(blended == from_mlps);
-  const CnnModel other_alone{1, {other}};
-  classify(builtin_marking_model(), &other_alone, 1.0f, kAlwaysRun, features, patch, scratch, from_other);
-  const int ensemble_best =
-      classify(builtin_marking_model(), &two, 0.5f, kAlwaysRun, features, patch, scratch, blended);
-  product_total = 0.0;
-  for (std::size_t k = 0; k < product.size(); ++k) {
-    product[k] =
-        std::sqrt(std::max(double{from_mlps[k]}, 1e-12)) *
-        std::pow(std::max(double{from_net[k]}, 1e-12) * std::max(double{from_other[k]}, 1e-12), 0.25);
-    product_total += product[k];
-  }
-  for (std::size_t k = 0; k < product.size(); ++k)
-    CHECK(blended[k] == Catch::Approx(product[k] / product_total).margin(1e-6));
-  CHECK(ensemble_best ==
-        static_cast<int>(std::max_element(product.begin(), product.end()) - product.begin()));
-  // The networks skipped where the MLPs' reject reaches the bound: the MLPs' own.
-  const float mlp_reject = from_mlps[static_cast<std::size_t>(kRejectClass)];
-  classify(builtin_marking_model(), &two, 0.5f, mlp_reject, features, patch, scratch, blended);
-  CHECK(blended == from_mlps);
-  classify(builtin_marking_model(), &two, 0.5f, std::nextafter(mlp_reject, 2.0f), features, patch, scratch,
-           blended);
-  CHECK(blended != from_mlps);
+  Probabilities from_net, from_mlps, blended;
+  check_network_alone(one, in, reference, from_net);
+  classify(builtin_marking_model(), in.features, from_mlps);
+  check_blend_with_mlps(one, in, from_net, from_mlps, blended);
+  check_two_networks(two, other, in, from_net, from_mlps, blended);
+  check_networks_skipped_at_reject_bound(two, in, from_mlps, blended);
   // No network, or share 0: the MLPs alone.
-  classify(builtin_marking_model(), nullptr, 0.5f, kAlwaysRun, features, patch, scratch, blended);
+  classify(builtin_marking_model(), nullptr, 0.5f, kAlwaysRun, in.features, in.patch, in.scratch, blended);
   CHECK(blended == from_mlps);
 }
 

@@ -358,28 +358,35 @@ TEST_CASE("detector: a word split by its I, set apart as a line, is one detectio
   CHECK(apart.counters().joined == 0);
 }
 
+namespace {
+
+// A candidate of columns col0..col1 in rows 100..179 (a letter 2.4 m long),
+// classified `label`, linked across no stroke yet.
+Candidate stroke_candidate(int col0, int col1, int label, float score, bool clipped, bool near_only) {
+  Candidate c{};
+  c.col0 = col0;
+  c.col1 = col1;
+  c.row0 = 100;
+  c.row1 = 179;
+  c.parts = 1;
+  c.length_m = 2.4f;
+  c.width_m = 0.03f * static_cast<float>(col1 - col0 + 1);
+  c.predicted = label;
+  c.score = score;
+  c.clipped = clipped;
+  c.clipped_near_only = near_only;
+  c.across_stroke = -1;
+  return c;
+}
+
+}  // namespace
+
 TEST_CASE("detector: candidates across a stroke join only when classified alike") {
   const int xing = static_cast<int>(*marking_class_from_name("xing"));
   const int stop = static_cast<int>(*marking_class_from_name("stop"));
-  const auto candidate = [](int col0, int col1, int label, float score, bool clipped, bool near_only) {
-    Candidate c{};
-    c.col0 = col0;
-    c.col1 = col1;
-    c.row0 = 100;
-    c.row1 = 179;
-    c.parts = 1;
-    c.length_m = 2.4f;
-    c.width_m = 0.03f * static_cast<float>(col1 - col0 + 1);
-    c.predicted = label;
-    c.score = score;
-    c.clipped = clipped;
-    c.clipped_near_only = near_only;
-    c.across_stroke = -1;
-    return c;
-  };
   std::array<std::int32_t, 4> reported_by{};
-  std::vector<Candidate> word = {candidate(10, 30, xing, 0.7f, false, false),
-                                 candidate(40, 80, xing, 0.9f, true, true)};
+  std::vector<Candidate> word = {stroke_candidate(10, 30, xing, 0.7f, false, false),
+                                 stroke_candidate(40, 80, xing, 0.9f, true, true)};
   word[0].across_stroke = 1;
   CHECK(join_across_strokes(word, reported_by) == 1);
   CHECK(reported_by[0] == 0);
@@ -397,17 +404,20 @@ TEST_CASE("detector: candidates across a stroke join only when classified alike"
   word[1].predicted = stop;
   CHECK(join_across_strokes(word, reported_by) == 0);
   CHECK(reported_by[1] == 1);
+}
 
+TEST_CASE("detector: a broken letter between a word's candidates joins the word, up to two pieces") {
+  const int xing = static_cast<int>(*marking_class_from_name("xing"));
   // A letter broken by a shadow, its pieces rejected (or the diagonal of
   // an N between its upright and the I, taken for a railway mark), between
   // two of the word's candidates: part of the word, up to two of them.
   const int rail = static_cast<int>(*marking_class_from_name("rail"));
   for (const int pieces : {1, 2, 3}) {
-    std::vector<Candidate> broken = {candidate(10, 30, xing, 0.8f, false, false)};
+    std::vector<Candidate> broken = {stroke_candidate(10, 30, xing, 0.8f, false, false)};
     for (int k = 0; k < pieces; ++k)
       broken.push_back(
-          candidate(40 + 10 * k, 45 + 10 * k, k == 0 ? rail : kRejectClass, 0.95f, false, false));
-    broken.push_back(candidate(80, 100, xing, 0.7f, false, false));
+          stroke_candidate(40 + 10 * k, 45 + 10 * k, k == 0 ? rail : kRejectClass, 0.95f, false, false));
+    broken.push_back(stroke_candidate(80, 100, xing, 0.7f, false, false));
     for (std::size_t k = 0; k + 1 < broken.size(); ++k) broken[k].across_stroke = static_cast<int>(k + 1);
     std::array<std::int32_t, 5> by{};
     CHECK(join_across_strokes(broken, by) == (pieces <= 2 ? 1u : 0u));
@@ -418,12 +428,16 @@ TEST_CASE("detector: candidates across a stroke join only when classified alike"
     CHECK(joined.score == 0.8f);  // the word's, not the pieces' scores
     CHECK(joined.predicted == xing);
   }
+}
 
+TEST_CASE("detector: a chain of candidates across strokes joins in either order") {
+  const int xing = static_cast<int>(*marking_class_from_name("xing"));
+  std::array<std::int32_t, 4> reported_by{};
   // A chain, the candidates in either order: each links to the next.
   for (const bool reversed : {false, true}) {
-    std::vector<Candidate> chain = {candidate(10, 30, xing, 0.8f, false, false),
-                                    candidate(40, 60, xing, 0.8f, false, false),
-                                    candidate(70, 90, xing, 0.8f, true, false)};
+    std::vector<Candidate> chain = {stroke_candidate(10, 30, xing, 0.8f, false, false),
+                                    stroke_candidate(40, 60, xing, 0.8f, false, false),
+                                    stroke_candidate(70, 90, xing, 0.8f, true, false)};
     if (reversed) std::swap(chain[0], chain[2]);
     const int a = reversed ? 2 : 0, c = reversed ? 0 : 2;
     chain[static_cast<std::size_t>(a)].across_stroke = 1;
