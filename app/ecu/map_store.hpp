@@ -39,8 +39,8 @@
 #include <string>
 #include <system_error>
 
-#include "app/common/result.hpp"
 #include "app/common/crc32.hpp"
+#include "app/common/result.hpp"
 #include "app/engine/config.hpp"
 #include "app/engine/sequence_database.hpp"
 #include "platform/unique_fd.hpp"

@@ -165,10 +165,10 @@ struct WordConfig {
 
 // Classification (CandidateClassifier).
 struct ClassifierConfig {
-  // Classifier weights; nullptr: the model compiled in (model/marking_model.cpp).
+  // Classifier weights; nullptr: the model compiled in (model/marking_mlp.bin).
   const MlpModel* model = nullptr;
   // The convolutional networks blended in (marking_classifier.hpp); nullptr:
-  // those compiled in (model/marking_cnn.cpp). cnn_share 0: MLPs alone
+  // those compiled in (model/marking_cnn.bin). cnn_share 0: MLPs alone
   // (detector_cnn_share).
   const CnnModel* cnn = nullptr;
   float cnn_share = 0.5f;

@@ -14,8 +14,8 @@
 #include <string>
 #include <string_view>
 
-#include "app/common/result.hpp"
 #include "app/common/crc32.hpp"
+#include "app/common/result.hpp"
 
 namespace markloop::perception::model_file {
 
