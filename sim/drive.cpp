@@ -1,4 +1,5 @@
 #include "sim/drive.hpp"
+#include "app/common/units.hpp"
 
 #include <cmath>
 #include <numbers>
@@ -6,7 +7,6 @@
 namespace markloop::sim {
 
 namespace {
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 // A wrong label is one of the symbol classes (arrows, words, numbers, bike,
 // diamond: the first 14); stop lines and crosswalks are not mistaken for them.
 constexpr std::size_t kConfusableClasses = 14;
@@ -41,10 +41,10 @@ bool Drive::next(DriveFrame& out) {
   const Pose2 truth = scenario_.road.at(std::fmod(config_.speed_mps * t, lap_length));
 
   // Dead reckoning from noisy wheel speed and yaw rate: the estimate drifts.
-  std::normal_distribution<double> yaw_noise(0.0, config_.yaw_rate_noise_dps * kDegToRad);
+  std::normal_distribution<double> yaw_noise(0.0, config_.yaw_rate_noise_dps * kRadiansPerDegree);
   if (frame_ > 0) {
     const double yaw_rate = wrap_angle(truth.yaw - previous_truth_.yaw) / dt;
-    const double measured_rate = yaw_rate + config_.yaw_rate_bias_dps * kDegToRad + yaw_noise(rng_);
+    const double measured_rate = yaw_rate + config_.yaw_rate_bias_dps * kRadiansPerDegree + yaw_noise(rng_);
     const double travelled = std::hypot(truth.x - previous_truth_.x, truth.y - previous_truth_.y);
     const double measured_distance = travelled * (1.0 + config_.speed_scale_error);
     const double mid_yaw = estimate_.yaw + 0.5 * measured_rate * dt;

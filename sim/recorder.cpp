@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "app/common/units.hpp"
 #include "app/io/y4m.hpp"
 #include "app/tools/common/still_image.hpp"
 #include "app/tools/common/tool_files.hpp"
@@ -20,8 +21,6 @@
 namespace markloop::sim {
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 // A checked output file: the first failure is remembered in `error`.
 class OutputFile {
@@ -99,7 +98,7 @@ Result<std::size_t> write_odometry(const Scenario& scenario, const RecordOptions
     const Pose2 before = truth_at(scenario, speed, std::max(0.0, t - h));
     const Pose2 after = truth_at(scenario, speed, t + h);
     const double span = t + h - std::max(0.0, t - h);
-    const double yaw_rate_dps = wrap_angle(after.yaw - before.yaw) / span * kRadToDeg;
+    const double yaw_rate_dps = wrap_angle(after.yaw - before.yaw) / span * kDegreesPerRadian;
     dbc::VehicleOdometry m;
     m.wheel_speed_m_per_s = speed * (1.0 + config.speed_scale_error) + config.speed_noise_mps * gauss(rng);
     m.yaw_rate_deg_per_s = yaw_rate_dps + config.yaw_rate_bias_dps + config.yaw_rate_noise_dps * gauss(rng);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "app/common/units.hpp"
 #include "app/perception/marking_classes.hpp"
 #include "dbc/markloop_messages.hpp"
 #include "dbc/receive.hpp"
@@ -12,7 +13,6 @@ namespace markloop::ecu {
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 // A detection's ground position error grows about linearly with range; this
 // is the range at which it is twice that of a marking at the bumper.
 constexpr double kPositionErrorDoublingRange_m = 5.0;
@@ -219,7 +219,7 @@ void Ecu::on_match(const MatchEvent& event) {
   message.pose_valid = event.has_relative_pose;
   message.pose_dx_m = event.relative_pose.x;
   message.pose_dy_m = event.relative_pose.y;
-  message.pose_dyaw_deg = event.relative_pose.yaw * kRadToDeg;
+  message.pose_dyaw_deg = event.relative_pose.yaw * kDegreesPerRadian;
   message.pose_residual_m = event.residual_m;
   ++counters_.loop_detections;
   bool first = true;

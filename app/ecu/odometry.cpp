@@ -1,4 +1,5 @@
 #include "app/ecu/odometry.hpp"
+#include "app/common/units.hpp"
 
 #include <cmath>
 #include <numbers>
@@ -6,7 +7,6 @@
 namespace markloop::ecu {
 
 namespace {
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 double seconds(Nanoseconds d) {
   return std::chrono::duration<double>(d).count();
 }
@@ -51,7 +51,7 @@ dbc::DecodeError OdometryIntegrator::receive(std::span<const std::uint8_t> paylo
     return error;
   }
   ++counters_.accepted;
-  integrate(message.wheel_speed_m_per_s, message.yaw_rate_deg_per_s * kDegToRad, now);
+  integrate(message.wheel_speed_m_per_s, message.yaw_rate_deg_per_s * kRadiansPerDegree, now);
   return error;
 }
 

@@ -7,12 +7,12 @@
 #include <Eigen/Geometry>
 #include <opencv2/core/persistence.hpp>
 
+#include "app/common/units.hpp"
 #include "app/perception/storage_file.hpp"
 
 namespace markloop::perception {
 namespace {
 
-constexpr double kDegree = std::numbers::pi / 180.0;
 // Points closer than this to the camera plane are not projected: their
 // pixels would be meaningless (and distortion polynomials diverge).
 constexpr double kMinDepth = 0.05;
@@ -240,9 +240,9 @@ Result<CameraMounting> read_mounting(const cv::FileStorage& fs) {
   if (!optional_number("mount_roll_deg", roll) || !optional_number("mount_yaw_deg", yaw) ||
       !optional_number("mount_x", m.x_m) || !optional_number("mount_y", m.y_m))
     return error("mount_roll_deg, mount_yaw_deg, mount_x and mount_y must be numbers");
-  m.pitch_rad = pitch * kDegree;
-  m.roll_rad = roll * kDegree;
-  m.yaw_rad = yaw * kDegree;
+  m.pitch_rad = pitch * kRadiansPerDegree;
+  m.roll_rad = roll * kRadiansPerDegree;
+  m.yaw_rad = yaw * kRadiansPerDegree;
   return m;
 }
 
@@ -307,8 +307,8 @@ bool save_camera_model(const CameraModel& model, const std::string& path, std::s
        << (cv::Mat_<double>(1, 5) << k.distortion[0], k.distortion[1], k.distortion[2], k.distortion[3],
            k.distortion[4]);
     fs << "mount_x" << m.x_m << "mount_y" << m.y_m << "mount_height" << m.height_m;
-    fs << "mount_pitch_deg" << m.pitch_rad / kDegree << "mount_roll_deg" << m.roll_rad / kDegree
-       << "mount_yaw_deg" << m.yaw_rad / kDegree;
+    fs << "mount_pitch_deg" << m.pitch_rad / kRadiansPerDegree << "mount_roll_deg"
+       << m.roll_rad / kRadiansPerDegree << "mount_yaw_deg" << m.yaw_rad / kRadiansPerDegree;
     return true;
   } catch (const std::exception& e) {
     error = path + ": " + e.what();
@@ -324,7 +324,7 @@ CameraModel default_camera_model() {
   k.distortion = {-0.05, 0.01, 0.0, 0.0, 0.0};
   CameraMounting m;
   m.height_m = 1.5;
-  m.pitch_rad = 12.0 * kDegree;
+  m.pitch_rad = 12.0 * kRadiansPerDegree;
   return CameraModel::pinhole(1280, 512, k, m);
 }
 

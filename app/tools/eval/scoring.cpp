@@ -1,4 +1,5 @@
 #include "app/tools/eval/scoring.hpp"
+#include "app/common/units.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -42,13 +43,13 @@ LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>
   std::vector<replay::FramePair> pairs;
   std::vector<std::optional<Pose2>> estimates;
   std::vector<double> latencies, processing, since_query_frame;
-  constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
   for (const LoopReport& report : loops) {
     const dbc::LoopDetection& m = report.message;
     const replay::FramePair pair{m.query_frame, m.match_frame};
     const std::optional<Pose2> estimate =
-        m.pose_valid ? std::optional<Pose2>(Pose2{m.pose_dx_m, m.pose_dy_m, m.pose_dyaw_deg * kDegToRad})
-                     : std::nullopt;
+        m.pose_valid
+            ? std::optional<Pose2>(Pose2{m.pose_dx_m, m.pose_dy_m, m.pose_dyaw_deg * kRadiansPerDegree})
+            : std::nullopt;
     pairs.push_back(pair);
     estimates.push_back(estimate);
 

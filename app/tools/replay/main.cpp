@@ -19,6 +19,7 @@
 
 #include "app/common/cli.hpp"
 #include "app/common/memory_check.hpp"
+#include "app/common/units.hpp"
 #include "app/tools/common/tool_files.hpp"
 #include "app/tools/replay/compat.hpp"
 #include "app/tools/replay/paper_format.hpp"
@@ -29,8 +30,6 @@ namespace {
 using namespace markloop;
 using namespace markloop::replay;
 using namespace markloop::cli;
-
-constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
 constexpr const char* kUsage = R"(usage: markloop-replay --markings FILE [options]
 
@@ -325,10 +324,10 @@ void write_jsonl(FILE* f, const MatchEvent& e, const LabelTable& labels, const T
                "\"alignment\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},",
                e.query_frame(), e.match_frame(), frames(true).c_str(), frames(false).c_str(),
                label_list.c_str(), positions(e.query).c_str(), positions(e.match).c_str(), e.alignment.x,
-               e.alignment.y, e.alignment.yaw * kDegPerRad);
+               e.alignment.y, e.alignment.yaw * kDegreesPerRadian);
   if (e.has_relative_pose)
     std::fprintf(f, "\"relative_pose\":{\"dx\":%.4f,\"dy\":%.4f,\"dyaw_deg\":%.3f},", e.relative_pose.x,
-                 e.relative_pose.y, e.relative_pose.yaw * kDegPerRad);
+                 e.relative_pose.y, e.relative_pose.yaw * kDegreesPerRadian);
   std::fprintf(f, "\"residual_m\":%.4f,\"score\":%.4f,\"verified_candidates\":%u", e.residual_m, e.score,
                e.verified_candidates);
   if (judge != nullptr && judge->covers(e.query_frame()) && judge->covers(e.match_frame()))
@@ -513,7 +512,7 @@ void print_loop(const Replay& r, const MatchEvent& e) {
   std::printf("]  residual %.3f m  score %.2f", e.residual_m, e.score);
   if (e.has_relative_pose)
     std::printf("  relative pose (%.2f m, %.2f m, %.1f deg)", e.relative_pose.x, e.relative_pose.y,
-                e.relative_pose.yaw * kDegPerRad);
+                e.relative_pose.yaw * kDegreesPerRadian);
   const TruthJudge* judge = r.judge.get();
   if (judge && judge->covers(e.query_frame()) && judge->covers(e.match_frame()) &&
       !judge->correct({e.query_frame(), e.match_frame()}))
