@@ -48,8 +48,9 @@ bool sleep_until(std::int64_t deadline_ns) {
 }
 
 Result<std::vector<can::CanFrame>> load_odometry(const std::string& path) {
-  std::string text, problem;
-  if (!tools::read_input(path, kMaxOdometryBytes, "an odometry log", text, problem)) return error(problem);
+  const Result<std::string> read = tools::read_input(path, kMaxOdometryBytes, "an odometry log");
+  if (!read) return read.error();
+  const std::string& text = *read;
   std::vector<can::CanFrame> frames;
   tools::Lines lines(text);
   std::string_view line;

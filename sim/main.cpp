@@ -195,10 +195,9 @@ void apply_light(const char* value, Conditions& conditions) {
 }
 
 void apply_class_weights(const char* value, WorldConfig& world) {
-  std::array<double, kClassCount> weights{};
-  std::string error;
-  if (!parse_class_weights(value, weights, error)) fail("--class-weights: " + error);
-  world.class_weights = weights;
+  const Result<std::array<double, kClassCount>> weights = parse_class_weights(value);
+  if (!weights) fail("--class-weights: " + weights.message());
+  world.class_weights = *weights;
 }
 
 // One option of `drive`, as given; bad values fail.
@@ -435,7 +434,6 @@ int run(int argc, char** argv) {
 int main(int argc, char** argv) {
   program_name() = "markloop-sim";
   const int status = run(argc, argv);
-  std::string error;
-  if (!tools::flush_stdout(error)) tools::fail_run(error);
+  if (const Status flushed = tools::flush_stdout(); !flushed) tools::fail_run(flushed.message());
   return status;
 }

@@ -26,19 +26,19 @@ namespace {
 class OutputFile {
  public:
   OutputFile(const std::filesystem::path& path, std::string& error) : error_(error) {
-    std::string problem;
-    if (!file_.open(path.string(), problem) && error_.empty()) error_ = problem;
+    if (const Status opened = file_.open(path.string()); !opened && error_.empty()) error_ = opened.message();
   }
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
   bool ok() const { return file_.get() != nullptr; }
   std::FILE* get() { return file_.get(); }
-  bool close() {
-    if (!ok()) return error_.empty();
-    std::string problem;
-    if (file_.close(problem)) return true;
-    if (error_.empty()) error_ = problem;
-    return false;
+  // The first failure remembered when this file's close fails or it never
+  // opened after one.
+  Status close() {
+    if (!ok()) return error_.empty() ? Status() : Status(error(error_));
+    const Status closed = file_.close();
+    if (!closed && error_.empty()) error_ = closed.message();
+    return closed ? Status() : Status(error(error_));
   }
 
  private:
@@ -420,7 +420,7 @@ Result<std::size_t> record_training_set(const perception::CameraModel& camera,
     const Pose2 pose = place_car(*scenario, renderer, options, shot, rng, occluders, seen);
     renderer.render(pose, shot.speed, shot.conditions, k, occluders, image);
     const std::filesystem::path png = dir / "images" / (std::to_string(1000000 + k).substr(1) + ".png");
-    if (!io::write_png(png.string(), image, problem)) return error(problem);
+    if (Status written = io::write_png(png.string(), image); !written) return written.error();
     for (const VisibleMarking& v : seen) write_quad_row(csv.get(), k, v, true);
     annotations += seen.size();
     if (options.progress && options.frames >= 50 && (k + 1) % (options.frames / 10) == 0)

@@ -170,8 +170,9 @@ Path smooth(const std::vector<std::array<double, 2>>& even) {
 }  // namespace
 
 Result<Route> load_route(const std::string& path) {
-  std::string text, read_error;
-  if (!tools::read_input(path, kMaxRouteBytes, "a route file", text, read_error)) return error(read_error);
+  const Result<std::string> read = tools::read_input(path, kMaxRouteBytes, "a route file");
+  if (!read) return read.error();
+  const std::string& text = *read;
   Result<RoutePoints> poses = read_poses(path, text);
   if (!poses) return poses.error();
   Route route;

@@ -510,9 +510,8 @@ std::array<double, kClassCount> default_class_weights() {
   return w;
 }
 
-bool parse_class_weights(std::string_view text, std::array<double, kClassCount>& weights,
-                         std::string& error) {
-  weights.fill(0.0);
+Result<std::array<double, kClassCount>> parse_class_weights(std::string_view text) {
+  std::array<double, kClassCount> weights{};
   double total = 0.0;
   while (!text.empty()) {
     const std::size_t comma = text.find(',');
@@ -521,30 +520,26 @@ bool parse_class_weights(std::string_view text, std::array<double, kClassCount>&
     const std::size_t eq = item.find('=');
     if (eq == std::string_view::npos) {
       // append(), not operator+: GCC 12 warns falsely (-Wrestrict) on "'" + string.
-      error = std::string("'").append(item).append("': expected NAME=WEIGHT");
-      return false;
+      return error(std::string("'").append(item).append("': expected NAME=WEIGHT"));
     }
     const auto label = perception::marking_class_from_name(item.substr(0, eq));
     if (!label) {
-      error = "unknown marking class '" + std::string(item.substr(0, eq)) + "'";
-      return false;
+      return error("unknown marking class '" + std::string(item.substr(0, eq)) + "'");
     }
     const std::string number(item.substr(eq + 1));
     char* end = nullptr;
     const double value = std::strtod(number.c_str(), &end);
     // Relative weights: a million to one is already "never".
     if (number.empty() || *end != '\0' || !std::isfinite(value) || value < 0 || value > 1e6) {
-      error = std::string("'").append(item).append("': weight must be a number in 0..1e6");
-      return false;
+      return error(std::string("'").append(item).append("': weight must be a number in 0..1e6"));
     }
     weights[*label] = value;
     total += value;
   }
   if (total <= 0) {
-    error = "class weights must not all be zero";
-    return false;
+    return error("class weights must not all be zero");
   }
-  return true;
+  return weights;
 }
 
 void Path::add_point(double x, double y) {

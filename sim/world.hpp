@@ -15,6 +15,7 @@
 #include <string_view>
 #include <vector>
 
+#include "app/common/result.hpp"
 #include "app/engine/types.hpp"
 #include "app/perception/marking_classes.hpp"
 
@@ -87,9 +88,9 @@ struct WorldConfig {
 
 // Default class mix of the newer scenarios: arrows dominate, as on urban roads.
 std::array<double, kClassCount> default_class_weights();
-// Parses "name=weight,name=weight,..." (unnamed classes get 0) into
-// `weights`; on error returns false with `error` saying what is wrong.
-bool parse_class_weights(std::string_view text, std::array<double, kClassCount>& weights, std::string& error);
+// Parses "name=weight,name=weight,..." (unnamed classes get 0); an error
+// says what is wrong.
+Result<std::array<double, kClassCount>> parse_class_weights(std::string_view text);
 
 // Built-in scenarios (see scenario_names()). Returns nullopt for an unknown
 // name.

@@ -21,6 +21,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "app/common/result.hpp"
 #include "app/ecu/runner.hpp"
 #include "app/io/y4m.hpp"
 #include "app/perception/marking_classes.hpp"
@@ -36,13 +37,18 @@ using std::chrono::nanoseconds;
 
 class DetectionsCsv {
  public:
-  ~DetectionsCsv() { close(); }
-  bool open(const std::string& path) {
+  ~DetectionsCsv() { (void)close(); }
+  // "PATH: cannot write: why" when the file cannot be created.
+  Status open(const std::string& path) {
+    path_ = path;
     file_ = std::fopen(path.c_str(), "w");
-    if (file_ == nullptr) return false;
+    if (file_ == nullptr) {
+      const int reason = errno;
+      return error(path + ": cannot write: " + std::strerror(reason));
+    }
     std::setvbuf(file_, buffer_.data(), _IOFBF, buffer_.size());  // no heap for stdio
     std::fputs("frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n", file_);
-    return true;
+    return {};
   }
   void write(std::uint64_t frame, std::span<const perception::Detection> detections) {
     if (file_ == nullptr) return;
@@ -55,15 +61,18 @@ class DetectionsCsv {
                    double(d.quad[3][1]), double(d.ground_x), double(d.ground_y));
     }
   }
-  bool close() {
-    if (file_ == nullptr) return true;
+  // "PATH: write error" when a write or the close failed.
+  Status close() {
+    if (file_ == nullptr) return {};
     const bool ok = std::ferror(file_) == 0;
     const bool closed = std::fclose(file_) == 0;
     file_ = nullptr;
-    return ok && closed;
+    if (!(ok && closed)) return error(path_ + ": write error");
+    return {};
   }
 
  private:
+  std::string path_;
   std::FILE* file_ = nullptr;
   std::array<char, 1 << 16> buffer_{};
 };
@@ -71,9 +80,13 @@ class DetectionsCsv {
 // The landmarks this run made, oldest first, for markloop-eval to judge
 // against the simulator's markings; not those of a loaded map (negative
 // stations), whose frames are another recording's. Once, after the recording.
-bool write_landmarks_csv(const std::string& path, const SequenceDatabase& database) {
+// "PATH: cannot write: why" when it cannot be written.
+Status write_landmarks_csv(const std::string& path, const SequenceDatabase& database) {
   std::FILE* file = std::fopen(path.c_str(), "w");
-  if (file == nullptr) return false;
+  if (file == nullptr) {
+    const int reason = errno;
+    return error(path + ": cannot write: " + std::strerror(reason));
+  }
   std::fputs("label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose\n", file);
   for (LandmarkId id = database.first_landmark_id(); id != database.next_landmark_id(); ++id) {
     const Landmark* l = database.landmark(id);
@@ -85,7 +98,10 @@ bool write_landmarks_csv(const std::string& path, const SequenceDatabase& databa
                  l->has_car_pose ? 1 : 0);
   }
   const bool ok = std::ferror(file) == 0;
-  return std::fclose(file) == 0 && ok;
+  const bool closed = std::fclose(file) == 0;
+  const int reason = errno;
+  if (!(closed && ok)) return error(path + ": cannot write: " + std::strerror(reason));
+  return {};
 }
 
 nanoseconds frame_time(std::uint64_t k, const io::Y4mFormat& format) {
@@ -301,10 +317,11 @@ int open_files(const RunOptions& options, io::Y4mReader& frames, can::CandumpLog
       return 1;
     }
   }
-  if (!config.detections_out.empty() && !detections_csv.open(config.detections_out)) {
-    std::fprintf(stderr, "markloop: %s: cannot write: %s\n", config.detections_out.c_str(),
-                 std::strerror(errno));
-    return 1;
+  if (!config.detections_out.empty()) {
+    if (const Status opened = detections_csv.open(config.detections_out); !opened) {
+      std::fprintf(stderr, "markloop: %s\n", opened.message().c_str());
+      return 1;
+    }
   }
   return 0;
 }
@@ -313,17 +330,18 @@ int open_files(const RunOptions& options, io::Y4mReader& frames, can::CandumpLog
 bool close_outputs(const EcuConfig& config, const Ecu& ecu, can::CandumpLogWriter& can_out,
                    DetectionsCsv& detections_csv) {
   bool ok = true;
-  if (!config.landmarks_out.empty() && !write_landmarks_csv(config.landmarks_out, ecu.engine().database())) {
-    std::fprintf(stderr, "markloop: %s: cannot write: %s\n", config.landmarks_out.c_str(),
-                 std::strerror(errno));
-    ok = false;
+  if (!config.landmarks_out.empty()) {
+    if (const Status written = write_landmarks_csv(config.landmarks_out, ecu.engine().database()); !written) {
+      std::fprintf(stderr, "markloop: %s\n", written.message().c_str());
+      ok = false;
+    }
   }
   if (auto ec = can_out.close()) {
     std::fprintf(stderr, "markloop: %s: %s\n", config.can.out_log.c_str(), ec.message().c_str());
     ok = false;
   }
-  if (!detections_csv.close()) {
-    std::fprintf(stderr, "markloop: %s: write error\n", config.detections_out.c_str());
+  if (const Status closed = detections_csv.close(); !closed) {
+    std::fprintf(stderr, "markloop: %s\n", closed.message().c_str());
     ok = false;
   }
   return ok;

@@ -6,6 +6,7 @@
 #include <iterator>
 #include <utility>
 
+#include "app/common/result.hpp"
 #include "app/ecu/runner.hpp"
 #include "platform/files.hpp"
 #include "platform/os.hpp"
@@ -89,8 +90,8 @@ double ms(std::int64_t ns) {
 }  // namespace
 
 namespace {
-bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode,
-                   std::size_t rss);
+Status write_summary(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode,
+                     std::size_t rss);
 }  // namespace
 
 bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode) {
@@ -163,7 +164,11 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
         (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
         (unsigned long long)e.matches, (unsigned long long)e.closures_extended);
   }
-  return write_summary(ecu, options, wall_seconds, mode, rss);
+  if (const Status written = write_summary(ecu, options, wall_seconds, mode, rss); !written) {
+    std::fprintf(stderr, "markloop: %s\n", written.message().c_str());
+    return false;
+  }
+  return true;
 }
 
 namespace {
@@ -242,16 +247,14 @@ void print_engine_counters(std::FILE* out, const EngineCounters& e) {
   std::fprintf(out, "}}\n");
 }
 
-bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode,
-                   std::size_t rss) {
-  if (options.summary_json.empty()) return true;
+// The --summary-json file, when asked for; else "PATH: why".
+Status write_summary(const Ecu& ecu, const RunOptions& options, double wall_seconds, const char* mode,
+                     std::size_t rss) {
+  if (options.summary_json.empty()) return {};
   char* text = nullptr;
   std::size_t length = 0;
   std::FILE* out = ::open_memstream(&text, &length);
-  if (out == nullptr) {
-    std::fprintf(stderr, "markloop: %s: out of memory\n", options.summary_json.c_str());
-    return false;
-  }
+  if (out == nullptr) return error(options.summary_json + ": out of memory");
   print_run_figures(out, ecu, wall_seconds, mode, rss);
   print_engine_counters(out, ecu.engine().counters());
   const bool formatted = std::fclose(out) == 0;
@@ -259,12 +262,8 @@ bool write_summary(const Ecu& ecu, const RunOptions& options, double wall_second
       formatted ? platform::write_file_replacing(options.summary_json.c_str(), std::string_view(text, length))
                 : std::make_error_code(std::errc::not_enough_memory);
   std::free(text);
-  if (ec) {
-    std::fprintf(stderr, "markloop: %s: cannot write the summary: %s\n", options.summary_json.c_str(),
-                 ec.message().c_str());
-    return false;
-  }
-  return true;
+  if (ec) return error(options.summary_json + ": cannot write the summary: " + ec.message());
+  return {};
 }
 
 }  // namespace

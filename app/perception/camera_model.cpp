@@ -274,9 +274,8 @@ Result<CameraModel> load_camera_model(const std::string& path) {
   // FileStorage reports syntax errors by throwing cv::Exception; they stop
   // here, at start-up, never in the loop.
   try {
-    std::string open_error;
-    std::optional<cv::FileStorage> storage = open_storage_file(path, open_error);
-    if (!storage) return error(open_error);
+    Result<cv::FileStorage> storage = open_storage_file(path);
+    if (!storage) return storage.error();
     Result<CameraModel> model = read_camera(*storage);
     if (!model) return with_context(path, model.error());
     return model;

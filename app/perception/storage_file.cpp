@@ -126,34 +126,29 @@ std::size_t first_repeated_key(std::string_view text, std::string& key) {
 
 }  // namespace
 
-std::optional<cv::FileStorage> open_storage_file(const std::string& path, std::string& error) {
+Result<cv::FileStorage> open_storage_file(const std::string& path) {
   std::string text;
   // The calibration is opened twice (camera, detector settings).
   std::error_code ec = platform::refuse_pipe(path.c_str());
   if (!ec) ec = platform::read_file_bounded(path.c_str(), kMaxStorageFileBytes, text);
   if (ec) {
-    error = platform::describe_read_error(path, ec, kMaxStorageFileBytes, "a calibration file");
-    return std::nullopt;
+    return error(platform::describe_read_error(path, ec, kMaxStorageFileBytes, "a calibration file"));
   }
   if (const std::size_t line = first_line_with_long_dashes(text); line != 0) {
-    error = path + ":" + std::to_string(line) +
-            ": a line beginning with \"----\" (a YAML document marker is \"---\" alone)";
-    return std::nullopt;
+    return error(path + ":" + std::to_string(line) +
+                 ": a line beginning with \"----\" (a YAML document marker is \"---\" alone)");
   }
   if (const std::size_t line = first_line_too_deep(text); line != 0) {
-    error = path + ":" + std::to_string(line) + ": nested more than " + std::to_string(kMaxStorageNesting) +
-            " levels deep: not a calibration file";
-    return std::nullopt;
+    return error(path + ":" + std::to_string(line) + ": nested more than " +
+                 std::to_string(kMaxStorageNesting) + " levels deep: not a calibration file");
   }
   std::string key;
   if (const std::size_t line = first_repeated_key(text, key); line != 0) {
-    error = path + ":" + std::to_string(line) + ": " + key + " is given twice";
-    return std::nullopt;
+    return error(path + ":" + std::to_string(line) + ": " + key + " is given twice");
   }
   cv::FileStorage fs(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
   if (!fs.isOpened()) {
-    error = path + ": not an OpenCV YAML, XML or JSON file";
-    return std::nullopt;
+    return error(path + ": not an OpenCV YAML, XML or JSON file");
   }
   return fs;
 }

@@ -4,10 +4,11 @@
 #pragma once
 
 #include <cstddef>
-#include <optional>
 #include <string>
 
 #include <opencv2/core/persistence.hpp>
+
+#include "app/common/result.hpp"
 
 namespace markloop::perception {
 
@@ -16,12 +17,12 @@ inline constexpr std::size_t kMaxStorageFileBytes = std::size_t{1} << 20;
 // Deeper files are no calibration either (OpenCV's own are 2 or 3 levels).
 inline constexpr int kMaxStorageNesting = 32;
 
-// The file at `path` opened for reading; none with `error` set ("PATH: ..."
-// or "PATH:LINE: ...") when it cannot be read, is too large, is nested
+// The file at `path` opened for reading; an error ("PATH: ..." or
+// "PATH:LINE: ...") when it cannot be read, is too large, is nested
 // deeper than kMaxStorageNesting, holds a line OpenCV 4.6's YAML reader
 // never returns from (one beginning with "----" followed by more text), or
 // is no FileStorage file. OpenCV reports syntax
 // errors by throwing cv::Exception: callers catch it.
-std::optional<cv::FileStorage> open_storage_file(const std::string& path, std::string& error);
+Result<cv::FileStorage> open_storage_file(const std::string& path);
 
 }  // namespace markloop::perception

@@ -8,26 +8,14 @@
 #include <vector>
 
 #include "app/tools/replay/paper_format.hpp"
+#include "tests/support/result_checks.hpp"
 
 using namespace markloop::replay;
 using Catch::Matchers::ContainsSubstring;
+using markloop::test::error_of;
+using markloop::test::loaded;
 
 namespace {
-
-// The value of a load that must succeed.
-template <class T>
-T loaded(markloop::Result<T> result) {
-  INFO((result ? std::string() : result.message()));
-  REQUIRE(result);
-  return std::move(result).value();
-}
-
-// The message of a load that must fail.
-template <class T>
-std::string error_of(const markloop::Result<T>& result) {
-  REQUIRE_FALSE(result);
-  return result.message();
-}
 
 std::string write_temp(const std::string& name, const std::string& content) {
   const auto path = std::filesystem::temp_directory_path() / ("markloop-test-" + name);

@@ -19,29 +19,17 @@
 #include "app/tools/replay/paper_format.hpp"
 #include "app/tools/replay/truth_judge.hpp"
 #include "tests/eval/eval_fixture.hpp"
+#include "tests/support/result_checks.hpp"
 
 namespace fs = std::filesystem;
 using namespace markloop;
 using namespace markloop::eval;
 using Catch::Approx;
 using Catch::Matchers::StartsWith;
+using markloop::test::error_of;
+using markloop::test::loaded;
 
 namespace {
-
-// The value of a load that must succeed.
-template <class T>
-T loaded(markloop::Result<T> result) {
-  INFO((result ? std::string() : result.message()));
-  REQUIRE(result);
-  return std::move(result).value();
-}
-
-// The message of a load that must fail.
-template <class T>
-std::string error_of(const markloop::Result<T>& result) {
-  REQUIRE_FALSE(result);
-  return result.message();
-}
 
 fs::path fresh_dir(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("markloop-eval-test-" + name);

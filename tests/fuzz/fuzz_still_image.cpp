@@ -15,11 +15,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const cv::Size camera(64, 48);
   for (const char* suffix : {".png", ".jpg"}) {
     const markloop::fuzz::InputFile file(data, size, suffix);
-    std::string error;
-    const cv::Mat grey = markloop::io::read_grey_still(file.path(), camera, error);
-    if (grey.empty()) {
-      if (error.empty()) std::abort();  // refused, and why
-    } else if (grey.size() != camera || grey.type() != CV_8UC1) {
+    const markloop::Result<cv::Mat> grey = markloop::io::read_grey_still(file.path(), camera);
+    if (!grey) {
+      if (grey.message().empty()) std::abort();  // refused, and why
+    } else if (grey->size() != camera || grey->type() != CV_8UC1) {
       std::abort();
     }
   }

@@ -11,11 +11,14 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "app/tools/common/still_image.hpp"
+#include "tests/support/result_checks.hpp"
 
 using markloop::io::check_still;
 using markloop::io::declared_still_size;
 using markloop::io::read_grey_still;
 using markloop::io::StillCheck;
+using markloop::test::error_of;
+using markloop::test::loaded;
 
 namespace {
 
@@ -55,10 +58,8 @@ TEST_CASE("Still image: whole PNG and JPEG files are complete and decode to grey
   for (const char* extension : {".png", ".jpg"}) {
     const auto bytes = encoded(extension);
     CHECK(check_still(bytes) == StillCheck::kComplete);
-    std::string error;
     const cv::Mat grey =
-        read_grey_still(written(std::string("whole") + extension, bytes), kPictureSize, error);
-    REQUIRE(error.empty());
+        loaded(read_grey_still(written(std::string("whole") + extension, bytes), kPictureSize));
     REQUIRE(grey.type() == CV_8UC1);
     CHECK(grey.size() == kPictureSize);
     CHECK(grey.at<std::uint8_t>(24, 10) > 200);  // the bar
@@ -71,9 +72,8 @@ TEST_CASE("Still image: a PNG cut anywhere before its IEND chunk is truncated") 
   for (std::size_t n = 8; n < bytes.size(); n += 7)
     CHECK(check_still(first(bytes, n)) == StillCheck::kTruncatedPng);
   CHECK(check_still(first(bytes, bytes.size() - 1)) == StillCheck::kTruncatedPng);
-  std::string error;
-  CHECK(read_grey_still(written("cut.png", first(bytes, bytes.size() / 2)), kPictureSize, error).empty());
-  CHECK(error == "truncated PNG (it ends before its IEND chunk)");
+  CHECK(error_of(read_grey_still(written("cut.png", first(bytes, bytes.size() / 2)), kPictureSize)) ==
+        "truncated PNG (it ends before its IEND chunk)");
 }
 
 TEST_CASE("Still image: a chunk length past the end of the file is not trusted") {
@@ -87,9 +87,8 @@ TEST_CASE("Still image: a JPEG without its end-of-image marker is truncated") {
   // libjpeg would decode these, the lost rows grey, with only a warning.
   for (std::size_t n : {bytes.size() - 2, bytes.size() * 3 / 4, bytes.size() / 2, std::size_t{3}})
     CHECK(check_still(first(bytes, n)) == StillCheck::kTruncatedJpeg);
-  std::string error;
-  CHECK(read_grey_still(written("cut.jpg", first(bytes, bytes.size() - 2)), kPictureSize, error).empty());
-  CHECK(error == "truncated JPEG (no end-of-image marker after its image data)");
+  CHECK(error_of(read_grey_still(written("cut.jpg", first(bytes, bytes.size() - 2)), kPictureSize)) ==
+        "truncated JPEG (no end-of-image marker after its image data)");
 
   // Bytes after the end-of-image marker (some cameras append data) are fine.
   auto padded = bytes;
@@ -101,13 +100,12 @@ TEST_CASE("Still image: other files are refused with the reason") {
   const std::vector<std::uint8_t> text = {'h', 'e', 'l', 'l', 'o', '\n'};
   CHECK(check_still(text) == StillCheck::kUnknownFormat);
   CHECK(check_still({}) == StillCheck::kUnknownFormat);
-  std::string error;
-  CHECK(read_grey_still(written("text.png", text), kPictureSize, error).empty());
-  CHECK(error == "cannot read as an image (PNG or JPEG)");
-  CHECK(read_grey_still(written("empty.jpg", {}), kPictureSize, error).empty());
-  CHECK(error == "cannot read as an image (PNG or JPEG)");
-  CHECK(read_grey_still("/nonexistent/still.png", kPictureSize, error).empty());
-  CHECK(error == "cannot open: No such file or directory");
+  CHECK(error_of(read_grey_still(written("text.png", text), kPictureSize)) ==
+        "cannot read as an image (PNG or JPEG)");
+  CHECK(error_of(read_grey_still(written("empty.jpg", {}), kPictureSize)) ==
+        "cannot read as an image (PNG or JPEG)");
+  CHECK(error_of(read_grey_still("/nonexistent/still.png", kPictureSize)) ==
+        "cannot open: No such file or directory");
 }
 
 TEST_CASE("Still image: the size a header declares is read before decoding") {
@@ -124,13 +122,10 @@ TEST_CASE("Still image: the size a header declares is read before decoding") {
                                           0x11, 0x08, 0x00, 0x10, 0x00, 0x20};
   jpeg.insert(jpeg.begin() + 2, app1.begin(), app1.end());
   CHECK(declared_still_size(jpeg) == kPictureSize);
-  std::string error;
-  CHECK(read_grey_still(written("app1.jpg", jpeg), kPictureSize, error).size() == kPictureSize);
-  CHECK(error.empty());
+  CHECK(loaded(read_grey_still(written("app1.jpg", jpeg), kPictureSize)).size() == kPictureSize);
 }
 
 TEST_CASE("Still image: a small file declaring a huge image is refused without decoding it") {
-  std::string error;
   // PNG: IHDR's width and height (bytes 16..23) set to 60000 x 60000, a
   // 3.6 GB grey image; its CRC now fails, so decoding would say "corrupt",
   // not the size.
@@ -142,8 +137,8 @@ TEST_CASE("Still image: a small file declaring a huge image is refused without d
     png[at + 3] = 0x60;
   }
   CHECK(declared_still_size(png) == cv::Size(60000, 60000));
-  CHECK(read_grey_still(written("huge.png", png), kPictureSize, error).empty());
-  CHECK(error == "image is 60000x60000, the camera's 64x48");
+  CHECK(error_of(read_grey_still(written("huge.png", png), kPictureSize)) ==
+        "image is 60000x60000, the camera's 64x48");
 
   // JPEG: the frame header's height and width (after its precision byte).
   auto jpeg = encoded(".jpg");
@@ -153,12 +148,12 @@ TEST_CASE("Still image: a small file declaring a huge image is refused without d
   jpeg[frame + 5] = 0xff;  // height 65535
   jpeg[frame + 6] = 0xff;
   CHECK(declared_still_size(jpeg) == cv::Size(64, 65535));
-  CHECK(read_grey_still(written("huge.jpg", jpeg), kPictureSize, error).empty());
-  CHECK(error == "image is 64x65535, the camera's 64x48");
+  CHECK(error_of(read_grey_still(written("huge.jpg", jpeg), kPictureSize)) ==
+        "image is 64x65535, the camera's 64x48");
 
   // The right format at another size is refused the same way.
-  CHECK(read_grey_still(written("whole.png", encoded(".png")), {1280, 512}, error).empty());
-  CHECK(error == "image is 64x48, the camera's 1280x512");
+  CHECK(error_of(read_grey_still(written("whole.png", encoded(".png")), {1280, 512})) ==
+        "image is 64x48, the camera's 1280x512");
 }
 
 TEST_CASE("Still image: a header without a size is not decoded") {
@@ -171,7 +166,6 @@ TEST_CASE("Still image: a header without a size is not decoded") {
   jpeg[4] = 0xff;
   jpeg[5] = 0xff;
   CHECK(declared_still_size(jpeg).empty());
-  std::string error;
-  CHECK(read_grey_still(written("nosize.jpg", jpeg), kPictureSize, error).empty());
-  CHECK(error == "corrupt PNG or JPEG (no image size in its header)");
+  CHECK(error_of(read_grey_still(written("nosize.jpg", jpeg), kPictureSize)) ==
+        "corrupt PNG or JPEG (no image size in its header)");
 }

@@ -8,9 +8,12 @@
 
 #include "sim/drive.hpp"
 #include "sim/world.hpp"
+#include "tests/support/result_checks.hpp"
 
 using namespace markloop;
 using namespace markloop::sim;
+using markloop::test::error_of;
+using markloop::test::loaded;
 
 namespace {
 
@@ -236,11 +239,8 @@ TEST_CASE("the city grid repeats its blocks' layouts") {
 }
 
 TEST_CASE("class weights choose the classes laid") {
-  std::array<double, kClassCount> weights{};
-  std::string error;
-  REQUIRE(parse_class_weights("stop=1,diamond=3", weights, error));
   WorldConfig config;
-  config.class_weights = weights;
+  config.class_weights = loaded(parse_class_weights("stop=1,diamond=3"));
   const auto s = make_scenario("ring", 1, config);
   int stops = 0, diamonds = 0;
   for (const Marking& m : s->markings) {
@@ -249,12 +249,10 @@ TEST_CASE("class weights choose the classes laid") {
   }
   CHECK(diamonds > stops);
 
-  CHECK_FALSE(parse_class_weights("stop", weights, error));
-  CHECK(error.find("NAME=WEIGHT") != std::string::npos);
-  CHECK_FALSE(parse_class_weights("zebra=1", weights, error));
-  CHECK(error.find("unknown marking class 'zebra'") != std::string::npos);
-  CHECK_FALSE(parse_class_weights("stop=-1", weights, error));
-  CHECK_FALSE(parse_class_weights("stop=0", weights, error));
+  CHECK(error_of(parse_class_weights("stop")).find("NAME=WEIGHT") != std::string::npos);
+  CHECK(error_of(parse_class_weights("zebra=1")).find("unknown marking class 'zebra'") != std::string::npos);
+  CHECK_FALSE(parse_class_weights("stop=-1"));
+  CHECK_FALSE(parse_class_weights("stop=0"));
 }
 
 TEST_CASE("legacy scenarios keep their marking mix (no stop lines or crosswalks)") {

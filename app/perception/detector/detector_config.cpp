@@ -154,9 +154,8 @@ Result<DetectorConfig> load_detector_config(const std::string& path, const Detec
   // FileStorage reports syntax errors by throwing cv::Exception; they stop
   // here, at start-up, never in the loop.
   try {
-    std::string open_error;
-    std::optional<cv::FileStorage> storage = open_storage_file(path, open_error);
-    if (!storage) return error(open_error);
+    Result<cv::FileStorage> storage = open_storage_file(path);
+    if (!storage) return storage.error();
     return read_detector_config(*storage, path, defaults);
   } catch (const std::exception& e) {
     return error(path + ": " + e.what());

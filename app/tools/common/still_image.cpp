@@ -128,40 +128,32 @@ cv::Size declared_still_size(std::span<const std::uint8_t> bytes) {
   return {};
 }
 
-cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::string& error) {
+Result<cv::Mat> read_grey_still(const std::string& path, cv::Size camera_size) {
   std::string file;
   if (const std::error_code ec = platform::read_file_bounded(path.c_str(), kMaxStillBytes, file)) {
-    if (ec == std::errc::is_a_directory)
-      error = "is a directory, not an image";
-    else if (ec == std::errc::file_too_large)
-      error = "larger than 256 MiB, the limit for an image";
-    else
-      error = "cannot open: " + ec.message();
-    return {};
+    if (ec == std::errc::is_a_directory) return error("is a directory, not an image");
+    if (ec == std::errc::file_too_large) return error("larger than 256 MiB, the limit for an image");
+    return error("cannot open: " + ec.message());
   }
   const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(file.data()), file.size());
   switch (check_still(bytes)) {
     case StillCheck::kComplete:
       break;
     case StillCheck::kUnknownFormat:
-      error = "cannot read as an image (PNG or JPEG)";
-      return {};
+      return error("cannot read as an image (PNG or JPEG)");
     case StillCheck::kTruncatedPng:
-      error = "truncated PNG (it ends before its IEND chunk)";
-      return {};
+      return error("truncated PNG (it ends before its IEND chunk)");
     case StillCheck::kTruncatedJpeg:
-      error = "truncated JPEG (no end-of-image marker after its image data)";
-      return {};
+      return error("truncated JPEG (no end-of-image marker after its image data)");
   }
   const cv::Size declared = declared_still_size(bytes);
   if (declared.empty()) {
-    error = "corrupt PNG or JPEG (no image size in its header)";
-    return {};
+    return error("corrupt PNG or JPEG (no image size in its header)");
   }
   if (declared != camera_size) {
-    error = "image is " + std::to_string(declared.width) + "x" + std::to_string(declared.height) +
-            ", the camera's " + std::to_string(camera_size.width) + "x" + std::to_string(camera_size.height);
-    return {};
+    return error("image is " + std::to_string(declared.width) + "x" + std::to_string(declared.height) +
+                 ", the camera's " + std::to_string(camera_size.width) + "x" +
+                 std::to_string(camera_size.height));
   }
   cv::Mat grey;
   try {
@@ -174,25 +166,22 @@ cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::stri
   }
   // A decoder that disagrees with the header is not trusted either.
   if (grey.empty() || grey.size() != declared) {
-    error = "corrupt PNG or JPEG (cannot decode it)";
-    return {};
+    return error("corrupt PNG or JPEG (cannot decode it)");
   }
   return grey;
 }
 
-bool write_png(const std::string& path, const cv::Mat& image, std::string& error) {
+Status write_png(const std::string& path, const cv::Mat& image) {
   std::vector<std::uint8_t> png;
   try {
     if (!cv::imencode(".png", image, png)) png.clear();
   } catch (const cv::Exception& e) {
-    error = path + ": cannot encode the PNG: " + e.what();
-    return false;
+    return error(path + ": cannot encode the PNG: " + e.what());
   }
   if (png.empty()) {
-    error = path + ": cannot encode the PNG";
-    return false;
+    return error(path + ": cannot encode the PNG");
   }
-  return tools::write_whole_file(path, png.data(), png.size(), error);
+  return tools::write_whole_file(path, png.data(), png.size());
 }
 
 }  // namespace markloop::io

@@ -9,6 +9,8 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "app/common/result.hpp"
+
 namespace markloop::io {
 
 enum class StillCheck : std::uint8_t {
@@ -33,13 +35,13 @@ cv::Size declared_still_size(std::span<const std::uint8_t> bytes);
 // declares with `camera_size` and only then decodes it to 8-bit grey: a
 // small file may declare a huge image (a "decompression bomb"), which would
 // otherwise be decoded into memory before the tool could refuse it.
-// On failure returns an empty Mat and sets `error` to what was wrong (without
-// the path: the caller adds it).
-cv::Mat read_grey_still(const std::string& path, cv::Size camera_size, std::string& error);
+// On failure the error says what was wrong (without the path: the caller
+// adds it).
+Result<cv::Mat> read_grey_still(const std::string& path, cv::Size camera_size);
 
 // `image` as a PNG file, encoded in memory and then written whole and
-// checked: false with "PATH: why" in `error` (a full disk, where imwrite
-// would only return false).
-bool write_png(const std::string& path, const cv::Mat& image, std::string& error);
+// checked: else "PATH: why" (a full disk, where imwrite would only return
+// false).
+Status write_png(const std::string& path, const cv::Mat& image);
 
 }  // namespace markloop::io

@@ -21,18 +21,19 @@
 #include <system_error>
 
 #include "app/common/cli.hpp"
+#include "app/common/result.hpp"
 #include "platform/files.hpp"
 
 namespace markloop::tools {
 
-// `path` whole into `text` when it holds at most `max_bytes`; else false with
-// "PATH: why" in `error`. `what` names the kind of file for the messages on
-// a directory or a file over the limit ("a markings file").
-inline bool read_input(const std::string& path, std::size_t max_bytes, const char* what, std::string& text,
-                       std::string& error) {
-  const std::error_code ec = platform::read_file_bounded(path.c_str(), max_bytes, text);
-  if (ec) error = platform::describe_read_error(path, ec, max_bytes, what);
-  return !ec;
+// `path` whole when it holds at most `max_bytes`; else "PATH: why". `what`
+// names the kind of file for the messages on a directory or a file over the
+// limit ("a markings file").
+inline Result<std::string> read_input(const std::string& path, std::size_t max_bytes, const char* what) {
+  std::string text;
+  if (const std::error_code ec = platform::read_file_bounded(path.c_str(), max_bytes, text))
+    return error(platform::describe_read_error(path, ec, max_bytes, what));
+  return text;
 }
 
 // The lines of a text held in memory, numbered from 1, each without its
@@ -95,29 +96,28 @@ class OutputFile {
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
 
-  bool open(const std::string& path, std::string& error) {
+  Status open(const std::string& path) {
     path_ = path;
     errno = 0;
     file_ = std::fopen(path.c_str(), "w");
-    if (file_ == nullptr) error = write_error(path);
-    return file_ != nullptr;
+    if (file_ == nullptr) return error(write_error(path));
+    return {};
   }
   std::FILE* get() const { return file_; }
   const std::string& path() const { return path_; }
 
-  // Flushes and closes; false with the error when any write failed. errno
-  // is left as the failed write set it, so that the reason is the first.
-  bool close(std::string& error) {
-    if (file_ == nullptr) return true;
+  // Flushes and closes; the error when any write failed. errno is left as
+  // the failed write set it, so that the reason is the first.
+  Status close() {
+    if (file_ == nullptr) return {};
     const bool flushed = std::fflush(file_) == 0;
     const bool clean = std::ferror(file_) == 0;
     const int reason = errno;
     const bool closed = std::fclose(file_) == 0;
     file_ = nullptr;
-    if (flushed && clean && closed) return true;
+    if (flushed && clean && closed) return {};
     if (!flushed || !clean) errno = reason;
-    error = write_error(path_);
-    return false;
+    return error(write_error(path_));
   }
 
  private:
@@ -126,20 +126,18 @@ class OutputFile {
 };
 
 // `size` bytes at `data` as the whole of the file `path` (an image encoded
-// in memory); false with "PATH: cannot write: why".
-inline bool write_whole_file(const std::string& path, const void* data, std::size_t size,
-                             std::string& error) {
+// in memory); else "PATH: cannot write: why".
+inline Status write_whole_file(const std::string& path, const void* data, std::size_t size) {
   OutputFile file;
-  if (!file.open(path, error)) return false;
+  if (Status opened = file.open(path); !opened) return opened;
   std::fwrite(data, 1, size, file.get());
-  return file.close(error);
+  return file.close();
 }
 
 // Standard output flushed and checked (a full disk, a closed pipe).
-inline bool flush_stdout(std::string& error) {
-  if (std::fflush(stdout) == 0 && std::ferror(stdout) == 0) return true;
-  error = write_error("standard output");
-  return false;
+inline Status flush_stdout() {
+  if (std::fflush(stdout) == 0 && std::ferror(stdout) == 0) return {};
+  return error(write_error("standard output"));
 }
 
 // A failure while running, such as an output that could not be written:

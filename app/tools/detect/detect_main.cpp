@@ -11,6 +11,7 @@
 #include <span>
 #include <string>
 #include <system_error>
+#include <utility>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -82,9 +83,9 @@ std::string json_string(const std::string& s) {
 
 // The view a user checks a miss against: which paint the threshold found,
 // how it was grouped, and what each group was called.
-bool write_view(const markloop::perception::MarkingDetector& detector,
-                std::span<const markloop::perception::Detection> reported, const std::string& path,
-                std::string& error) {
+markloop::Status write_view(const markloop::perception::MarkingDetector& detector,
+                            std::span<const markloop::perception::Detection> reported,
+                            const std::string& path) {
   using namespace markloop::perception;
   constexpr int kScale = 2;
   cv::Mat view;
@@ -123,7 +124,7 @@ bool write_view(const markloop::perception::MarkingDetector& detector,
                   static_cast<double>(c.score), c.clipped ? " C" : "", joined ? " J" : "");
     cv::putText(view, text, top_left + cv::Point(0, -3), cv::FONT_HERSHEY_PLAIN, 0.8, colour, 1);
   }
-  return markloop::io::write_png(path, view, error);
+  return markloop::io::write_png(path, view);
 }
 
 // Why a path named as an image cannot be read as one, or nothing (a file, a
@@ -269,14 +270,15 @@ cv::Mat read_image(const Options& o, const std::string& path, cv::Size size) {
     std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), reason.c_str());
     return {};
   }
-  std::string error;
-  const cv::Mat grey = markloop::io::read_grey_still(path, size, error);
-  if (grey.empty()) {
+  markloop::Result<cv::Mat> grey = markloop::io::read_grey_still(path, size);
+  if (!grey) {
+    std::string error = grey.message();
     // A size that is not the camera's may be the calibration's fault: name it.
     if (error.starts_with("image is ")) error += " (" + o.camera_path + ")";
     std::fprintf(stderr, "markloop-detect: %s: %s\n", path.c_str(), error.c_str());
+    return {};
   }
-  return grey;
+  return std::move(grey).value();
 }
 
 void detect_image(const Options& o, const std::string& path, cv::Size size,
@@ -291,10 +293,12 @@ void detect_image(const Options& o, const std::string& path, cv::Size size,
   // Each image on its own: its own lane lines place the horizon (when the
   // calibration asks for it, detector_horizon_from_lanes).
   const std::span<const Detection> detections = detector.detect_still(grey);
-  std::string error;
-  if (!o.view_dir.empty() && !write_view(detector, detections, view_path(o.view_dir, path), error)) {
-    std::fprintf(stderr, "markloop-detect: %s\n", error.c_str());
-    ++tally.unwritten_views;
+  if (!o.view_dir.empty()) {
+    if (const markloop::Status written = write_view(detector, detections, view_path(o.view_dir, path));
+        !written) {
+      std::fprintf(stderr, "markloop-detect: %s\n", written.message().c_str());
+      ++tally.unwritten_views;
+    }
   }
   for (const Detection& d : detections) print_detection(name, d);
 }
@@ -310,8 +314,8 @@ int main(int argc, char** argv) {
   const cv::Size size(setup.camera.width(), setup.camera.height());
   Tally tally;
   for (const std::string& path : o.images) detect_image(o, path, size, detector, tally);
-  std::string error;
-  if (!markloop::tools::flush_stdout(error)) markloop::tools::fail_run(error);
+  if (const markloop::Status flushed = markloop::tools::flush_stdout(); !flushed)
+    markloop::tools::fail_run(flushed.message());
   if (tally.bad_images > 0) return markloop::cli::kExitBadInput;
   return tally.unwritten_views > 0 ? markloop::cli::kExitOutputFailed : markloop::cli::kExitOk;
 }

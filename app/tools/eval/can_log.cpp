@@ -195,8 +195,10 @@ Status check_last_line(const std::string& path, const std::string& text, std::si
 
 Result<EcuCanLog> read_ecu_can_log(const std::string& path, const DriveTimes* drive) {
   EcuCanLog out;
-  std::string text, problem;
-  if (!tools::read_input(path, kMaxInputBytes, "a CAN log", text, problem)) return error(problem);
+  const Result<std::string> read = tools::read_input(path, kMaxInputBytes, "a CAN log");
+  if (!read) return read.error();
+  const std::string& text = *read;
+  std::string problem;
   Progress progress(path, count_lines(text));
   tools::Lines lines(text);
   StampCheck stamps(path, drive);

@@ -298,18 +298,15 @@ Status write_encoded_png(const std::string& path, const cv::Mat& image) {
     return error(path + ": cannot encode the PNG: " + e.what());
   }
   if (!encoded) return error(path + ": cannot encode the PNG");
-  std::string problem;
-  if (!tools::write_whole_file(path, png.data(), png.size(), problem)) return error(problem);
-  return {};
+  return tools::write_whole_file(path, png.data(), png.size());
 }
 
 }  // namespace
 
 Status write_svg(const std::string& path, const FigureContent& c) {
   const Layout layout(c);
-  std::string problem;
   tools::OutputFile file;
-  if (!file.open(path, problem)) return error(problem);
+  if (Status opened = file.open(path); !opened) return opened;
   std::FILE* f = file.get();
   svg_header(f, layout, c);
   svg_route(f, layout, *c.route);
@@ -317,8 +314,7 @@ Status write_svg(const std::string& path, const FigureContent& c) {
   svg_scale_bar(f, layout);
   svg_legend(f, layout, *c.markings);
   std::fprintf(f, "</svg>\n");
-  if (!file.close(problem)) return error(problem);
-  return {};
+  return file.close();
 }
 
 Status write_png(const std::string& path, const FigureContent& c) {

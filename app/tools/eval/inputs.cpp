@@ -51,8 +51,9 @@ class CsvFile {
  public:
   template <typename Row>
   static Status read(const std::string& path, std::string_view header, Row&& row) {
-    std::string text, error;
-    if (!tools::read_input(path, kMaxInputBytes, "a CSV file", text, error)) return markloop::error(error);
+    const Result<std::string> read = tools::read_input(path, kMaxInputBytes, "a CSV file");
+    if (!read) return read.error();
+    const std::string& text = *read;
     Progress progress(path, count_lines(text));
     tools::Lines lines(text);
     std::string_view line;

@@ -723,9 +723,8 @@ void json_passes(std::FILE* f, const PassScore& p) {
 // Every figure of the run as one JSON object; an error when the file cannot
 // be written.
 Status write_json(const std::string& path, const Run& r) {
-  std::string error;
   tools::OutputFile file;
-  if (!file.open(path, error)) return markloop::error(error);
+  if (Status opened = file.open(path); !opened) return opened;
   std::FILE* f = file.get();
   std::fprintf(f, "{\"frames\":%zu,\"route_length_m\":%.1f,\"tolerance_m\":%g,", r.route.size(), r.length_m,
                r.o.tolerance);
@@ -735,8 +734,7 @@ Status write_json(const std::string& path, const Run& r) {
   if (r.have_landmarks) json_landmarks(f, r.placed, r.landmarks, r.world);
   if (r.have_passes) json_passes(f, r.passes);
   std::fprintf(f, "}\n");
-  if (!file.close(error)) return markloop::error(error);
-  return {};
+  return file.close();
 }
 
 }  // namespace
@@ -757,7 +755,6 @@ int main(int argc, char** argv) {
     if (const Status written = write_json(r.o.json, r); !written) tools::fail_run(written.message());
     std::printf("figures: %s\n", r.o.json.c_str());
   }
-  std::string error;
-  if (!tools::flush_stdout(error)) tools::fail_run(error);
+  if (const Status flushed = tools::flush_stdout(); !flushed) tools::fail_run(flushed.message());
   return kExitOk;
 }

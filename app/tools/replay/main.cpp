@@ -458,11 +458,10 @@ void load_inputs(Replay& r) {
 // Opens `path`, lets `write` fill it, and closes it; a failed write fails the run.
 template <class Write>
 void write_output(const std::string& path, Write write) {
-  std::string error;
   tools::OutputFile f;
-  if (!f.open(path, error)) tools::fail_run(error);
+  if (const Status opened = f.open(path); !opened) tools::fail_run(opened.message());
   write(f.get());
-  if (!f.close(error)) tools::fail_run(error);
+  if (const Status closed = f.close(); !closed) tools::fail_run(closed.message());
 }
 
 std::vector<FramePair> run_compat_once(const Replay& r, unsigned k, bool write) {
@@ -588,8 +587,7 @@ int replay_main(int argc, char** argv) {
     run_single(r);
   else
     run_sweep(r);
-  std::string error;
-  if (!tools::flush_stdout(error)) tools::fail_run(error);
+  if (const Status flushed = tools::flush_stdout(); !flushed) tools::fail_run(flushed.message());
   return kExitOk;
 }
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string_view>
+#include <utility>
 
 #include "app/tools/common/tool_files.hpp"
 
@@ -15,10 +16,12 @@ namespace {
 // Splits a whole file into whitespace-separated tokens, remembering lines.
 class Tokens {
  public:
-  bool open(const std::string& path, std::string& error) {
-    if (!tools::read_input(path, kMaxMarkingsBytes, "a markings file", text_, error)) return false;
+  Status open(const std::string& path) {
+    Result<std::string> text = tools::read_input(path, kMaxMarkingsBytes, "a markings file");
+    if (!text) return text.error();
+    text_ = std::move(text).value();
     path_ = path;
-    return true;
+    return {};
   }
   // Next token and its line; false at the end.
   bool next(std::string_view& token, int& line) {
@@ -145,7 +148,7 @@ Result<MarkingRecord> read_record(Tokens& tokens, long long index, long long cou
 Result<std::vector<MarkingRecord>> load_markings(const std::string& path) {
   Tokens tokens;
   std::string problem;
-  if (!tokens.open(path, problem)) return error(problem);
+  if (Status opened = tokens.open(path); !opened) return opened.error();
   const Result<long long> count = read_count(tokens);
   if (!count) return count.error();
   std::vector<MarkingRecord> records;
@@ -280,8 +283,10 @@ constexpr std::string_view kFramesHeader = "frame,t,x,y,yaw";
 
 Result<std::vector<Pose2>> load_kitti_poses(const std::string& path) {
   std::vector<Pose2> poses;
-  std::string text, problem;
-  if (!tools::read_input(path, kMaxPosesBytes, "a poses file", text, problem)) return error(problem);
+  const Result<std::string> read = tools::read_input(path, kMaxPosesBytes, "a poses file");
+  if (!read) return read.error();
+  const std::string& text = *read;
+  std::string problem;
   tools::Lines lines(text);
   if (!read_kitti_lines(lines, path, poses, problem)) return error(problem);
   return poses;
@@ -289,8 +294,10 @@ Result<std::vector<Pose2>> load_kitti_poses(const std::string& path) {
 
 Result<TruePoses> load_truth(const std::string& path) {
   TruePoses truth;
-  std::string text, problem;
-  if (!tools::read_input(path, kMaxPosesBytes, "a ground truth file", text, problem)) return error(problem);
+  const Result<std::string> read = tools::read_input(path, kMaxPosesBytes, "a ground truth file");
+  if (!read) return read.error();
+  const std::string& text = *read;
+  std::string problem;
   tools::Lines lines(text);
   std::string_view header;
   if (lines.next(header) && trim(header) == kFramesHeader) {
@@ -304,8 +311,10 @@ Result<TruePoses> load_truth(const std::string& path) {
 
 Result<TruePoses> load_frames_csv(const std::string& path) {
   TruePoses truth;
-  std::string text, problem;
-  if (!tools::read_input(path, kMaxPosesBytes, "a frames.csv file", text, problem)) return error(problem);
+  const Result<std::string> read = tools::read_input(path, kMaxPosesBytes, "a frames.csv file");
+  if (!read) return read.error();
+  const std::string& text = *read;
+  std::string problem;
   tools::Lines lines(text);
   std::string_view header;
   if (!lines.next(header) || trim(header) != kFramesHeader)

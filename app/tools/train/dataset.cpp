@@ -23,7 +23,12 @@ class CsvReader {
   // Reads the file and checks that its header line starts with
   // `header_start`; `header` is the whole header, for the error.
   bool read_header(const std::string& header_start, const std::string& header, std::string& error) {
-    if (!tools::read_input(path_, max_bytes_, "an annotation file", text_, error)) return false;
+    Result<std::string> text = tools::read_input(path_, max_bytes_, "an annotation file");
+    if (!text) {
+      error = text.message();
+      return false;
+    }
+    text_ = std::move(text).value();
     lines_ = tools::Lines(text_);
     std::string_view line;
     if (!lines_.next(line) || !line.starts_with(header_start)) {

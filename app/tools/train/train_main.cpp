@@ -25,6 +25,7 @@
 #include <span>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -269,10 +270,9 @@ class ImageReader {
   cv::Mat grey(const std::string& name) {
     if (!drive_) {
       const std::string path = dir_ + "/images/" + name;
-      std::string error;
-      cv::Mat still = markloop::io::read_grey_still(path, size_, error);
-      if (still.empty()) fail(path + ": " + error);
-      return still;
+      markloop::Result<cv::Mat> still = markloop::io::read_grey_still(path, size_);
+      if (!still) fail(path + ": " + still.message());
+      return std::move(still).value();
     }
     const long wanted = std::stol(name);
     while (frame_ < wanted) {
@@ -954,10 +954,9 @@ int fold_of(int clip, int folds) {
 template <typename T>
 void write_raw(const std::string& path, const std::vector<T>& values) {
   markloop::tools::OutputFile file;
-  std::string error;
-  if (!file.open(path, error)) markloop::tools::fail_run(error);
+  if (const markloop::Status opened = file.open(path); !opened) markloop::tools::fail_run(opened.message());
   std::fwrite(values.data(), sizeof(T), values.size(), file.get());
-  if (!file.close(error)) markloop::tools::fail_run(error);
+  if (const markloop::Status closed = file.close(); !closed) markloop::tools::fail_run(closed.message());
 }
 
 void dump_set(const ImageSet& set, const std::string& prefix, int folds) {
@@ -1050,10 +1049,9 @@ constexpr const char* kBuild = MARKLOOP_TRAIN_BUILD_DIR;
 
 void write_bytes(const std::string& path, const std::string& bytes) {
   markloop::tools::OutputFile file;
-  std::string error;
-  if (!file.open(path, error)) markloop::tools::fail_run(error);
+  if (const markloop::Status opened = file.open(path); !opened) markloop::tools::fail_run(opened.message());
   std::fwrite(bytes.data(), 1, bytes.size(), file.get());
-  if (!file.close(error)) markloop::tools::fail_run(error);
+  if (const markloop::Status closed = file.close(); !closed) markloop::tools::fail_run(closed.message());
 }
 
 // --out: the model file (app/perception/model/README.md: every member's
@@ -1083,9 +1081,10 @@ void write_model(const std::vector<Mlp>& members, const std::string& path, const
                                        shape, values));
 
   markloop::tools::OutputFile notes;
-  std::string error;
-  if (!notes.open(std::filesystem::path(path).replace_extension(".txt").string(), error))
-    markloop::tools::fail_run(error);
+  if (const markloop::Status opened =
+          notes.open(std::filesystem::path(path).replace_extension(".txt").string());
+      !opened)
+    markloop::tools::fail_run(opened.message());
   std::fprintf(notes.get(),
                "%s: the marking classifier's MLPs, written by markloop-train\n"
                "(format: app/perception/model/README.md). Regenerate with\n"
@@ -1099,7 +1098,7 @@ void write_model(const std::vector<Mlp>& members, const std::string& path, const
                std::filesystem::path(path).filename().c_str(), kBuild, command.c_str(), samples,
                members.size(), first.inputs, first.hidden, first.outputs,
                static_cast<unsigned>(model_file::payload_crc(values)));
-  if (!notes.close(error)) markloop::tools::fail_run(error);
+  if (const markloop::Status closed = notes.close(); !closed) markloop::tools::fail_run(closed.message());
 }
 
 // The command line.
@@ -1247,8 +1246,8 @@ void dump_candidates(const Options& o, const Sets& sets) {
   std::filesystem::create_directories(o.dump_dir + "/mlp", made);
   if (made) markloop::tools::fail_run(o.dump_dir + "/mlp: cannot create the directory: " + made.message());
   markloop::tools::OutputFile index;
-  std::string error;
-  if (!index.open(o.dump_dir + "/sets.txt", error)) markloop::tools::fail_run(error);
+  if (const markloop::Status opened = index.open(o.dump_dir + "/sets.txt"); !opened)
+    markloop::tools::fail_run(opened.message());
   for (std::size_t k = 0; k < sets.train.size(); ++k) {
     dump_set(sets.train[k], o.dump_dir + "/train" + std::to_string(k), o.folds);
     std::fprintf(index.get(), "train%zu %s %zu\n", k, sets.train[k].dir.c_str(),
@@ -1258,7 +1257,7 @@ void dump_candidates(const Options& o, const Sets& sets) {
     dump_set(sets.tests[k], o.dump_dir + "/test" + std::to_string(k), o.folds);
     std::fprintf(index.get(), "test%zu %s %zu\n", k, sets.tests[k].dir.c_str(), sets.tests[k].samples.size());
   }
-  if (!index.close(error)) markloop::tools::fail_run(error);
+  if (const markloop::Status closed = index.close(); !closed) markloop::tools::fail_run(closed.message());
   // The patches written must be those the detector classified.
   if (g_patch_mismatches > 0)
     fail(std::to_string(g_patch_mismatches) + " candidates' patches do not give their features");
@@ -1437,7 +1436,7 @@ int train_main(int argc, char** argv) {
 int main(int argc, char** argv) {
   markloop::cli::program_name() = "markloop-train";
   const int status = train_main(argc, argv);
-  std::string error;
-  if (!markloop::tools::flush_stdout(error)) markloop::tools::fail_run(error);
+  if (const markloop::Status flushed = markloop::tools::flush_stdout(); !flushed)
+    markloop::tools::fail_run(flushed.message());
   return status;
 }
