@@ -10,20 +10,25 @@
 #   then: SIGTERM to markloop (map saved, exit 0), and the candump log must
 #         hold complete, E2E-valid LoopDetection detections and Status.
 #
-#   ecu-live-e2e.sh BUILD_DIR RESULTS_DIR [--frames N (0: all)] [--scenario NAME]
+#   ecu-live-e2e.sh BUILD_DIR RESULTS_DIR [--frames N (0: all)] [--scenario NAME] [--speed M/S]
+#
+# The drive goes at 20 m/s by default: both laps, and so the loops, in half
+# the time the simulator's default speed takes.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 src=$(cd "$here/../.." && pwd)
-[ $# -ge 2 ] || { echo "usage: ecu-live-e2e.sh BUILD_DIR RESULTS_DIR [--frames N] [--scenario NAME]" >&2; exit 2; }
+[ $# -ge 2 ] || { echo "usage: ecu-live-e2e.sh BUILD_DIR RESULTS_DIR [--frames N] [--scenario NAME] [--speed M/S]" >&2; exit 2; }
 bin=$(cd "$1" && pwd)
 results=$2
 shift 2
 frames=0  # the whole drive: the second lap gives the loops
 scenario=loop
+speed=20
 while [ $# -gt 0 ]; do
   case "$1" in
     --frames) frames=$2; shift 2 ;;
     --scenario) scenario=$2; shift 2 ;;
+    --speed) speed=$2; shift 2 ;;
     *) echo "ecu-live-e2e: unknown option $1" >&2; exit 2 ;;
   esac
 done
@@ -38,14 +43,14 @@ results=$(cd "$results" && pwd)
 drive=$results/drive
 camera=$src/app/cameras/hil-640x480.yaml
 
-if [ ! -s "$drive/frames.y4m" ] || [ "$(cat "$drive/.args" 2>/dev/null)" != "$scenario $frames" ]; then
+if [ ! -s "$drive/frames.y4m" ] || [ "$(cat "$drive/.args" 2>/dev/null)" != "$scenario $frames $speed" ]; then
   rm -rf "$drive"
-  echo "ecu-live-e2e: rendering $frames frames of '$scenario' for the HIL camera"
+  echo "ecu-live-e2e: rendering $frames frames of '$scenario' at $speed m/s for the HIL camera"
   limit=()
   [ "$frames" = 0 ] || limit=(--max-frames "$frames")
-  "$bin/bin/markloop-sim" drive --scenario "$scenario" --seed 1 --camera "$camera" \
+  "$bin/bin/markloop-sim" drive --scenario "$scenario" --seed 1 --speed "$speed" --camera "$camera" \
     "${limit[@]}" --out "$drive" >/dev/null
-  echo "$scenario $frames" >"$drive/.args"
+  echo "$scenario $frames $speed" >"$drive/.args"
 fi
 
 rm -rf "$results/vm"
