@@ -228,4 +228,15 @@ std::uint64_t available_memory_bytes() noexcept {
   return std::uint64_t{info.totalram} * info.mem_unit;
 }
 
+std::optional<FileId> regular_file_id(const std::string& path) {
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0 || !S_ISREG(info.st_mode)) return std::nullopt;
+  return FileId{static_cast<std::uint64_t>(info.st_dev), static_cast<std::uint64_t>(info.st_ino)};
+}
+
+bool overwrites(const std::string& output, const std::string& input) {
+  const auto out = regular_file_id(output);
+  return out && out == regular_file_id(input);
+}
+
 }  // namespace markloop::platform

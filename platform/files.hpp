@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -94,5 +95,18 @@ std::error_code try_lock_exclusive(int fd) noexcept;
 // Memory the system could give this process now (MemAvailable), or its
 // physical memory when the kernel does not say.
 std::uint64_t available_memory_bytes() noexcept;
+
+// A regular file's identity (device and inode), to tell that an output would
+// overwrite an input under another name; none for anything else.
+struct FileId {
+  std::uint64_t device = 0;
+  std::uint64_t inode = 0;
+  bool operator==(const FileId&) const = default;
+};
+
+std::optional<FileId> regular_file_id(const std::string& path);
+
+// Whether writing `output` would overwrite the input file `input`.
+bool overwrites(const std::string& output, const std::string& input);
 
 }  // namespace markloop::platform

@@ -10,7 +10,7 @@
 #include "app/ecu/config.hpp"
 #include "app/ecu/runner.hpp"
 #include "app/ecu/settings.hpp"
-#include "app/tools/common/tool_files.hpp"
+#include "platform/files.hpp"
 
 namespace {
 
@@ -90,7 +90,7 @@ markloop::Status check_files_differ(const markloop::ecu::EcuConfig& config, cons
   for (const auto& [output_option, output] : outputs) {
     for (const auto& [input_option, input] : inputs) {
       if (output->empty() || input->empty() || output == input) continue;
-      if (*output == *input || markloop::tools::overwrites(*output, *input))
+      if (*output == *input || markloop::platform::overwrites(*output, *input))
         return markloop::error(std::string(output_option) + " " + *output + " is the file given as " +
                                input_option + ": it would be overwritten");
     }

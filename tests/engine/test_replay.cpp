@@ -238,9 +238,9 @@ TEST_CASE("replay: an output is told from the input it would overwrite", "[repla
   const auto link = (scratch() / "link.txt").string();
   std::filesystem::remove(link);
   std::filesystem::create_symlink(input, link);
-  CHECK(tools::overwrites(link, input));
-  CHECK(tools::overwrites(input, input));
-  CHECK_FALSE(tools::overwrites(write_temp("other.txt", "x"), input));
-  CHECK_FALSE(tools::overwrites((scratch() / "absent.txt").string(), input));
-  CHECK_FALSE(tools::overwrites("/dev/null", "/dev/null"));  // not a regular file: nothing to lose
+  CHECK(platform::overwrites(link, input));
+  CHECK(platform::overwrites(input, input));
+  CHECK_FALSE(platform::overwrites(write_temp("other.txt", "x"), input));
+  CHECK_FALSE(platform::overwrites((scratch() / "absent.txt").string(), input));
+  CHECK_FALSE(platform::overwrites("/dev/null", "/dev/null"));  // not a regular file: nothing to lose
 }

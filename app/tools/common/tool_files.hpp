@@ -8,14 +8,11 @@
 // line, configuration or input (cli::fail).
 #pragma once
 
-#include <sys/stat.h>
-
 #include <cerrno>
 #include <cstddef>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <optional>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -59,26 +56,6 @@ class Lines {
   std::string_view rest_;
   std::size_t number_ = 0;
 };
-
-// A regular file's identity (device and inode), to tell that an output would
-// overwrite an input under another name; none for anything else.
-struct FileId {
-  dev_t device = 0;
-  ino_t inode = 0;
-  bool operator==(const FileId&) const = default;
-};
-
-inline std::optional<FileId> regular_file_id(const std::string& path) {
-  struct stat info {};
-  if (::stat(path.c_str(), &info) != 0 || !S_ISREG(info.st_mode)) return std::nullopt;
-  return FileId{info.st_dev, info.st_ino};
-}
-
-// Whether writing `output` would overwrite the input file `input`.
-inline bool overwrites(const std::string& output, const std::string& input) {
-  const auto out = regular_file_id(output);
-  return out && out == regular_file_id(input);
-}
 
 // "PATH: cannot write: why", with errno's reason when there is one.
 inline std::string write_error(const std::string& path) {

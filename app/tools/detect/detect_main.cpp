@@ -143,12 +143,12 @@ std::string view_path(const std::string& view_dir, const std::string& image) {
 
 // A view that would overwrite one of the images: refused before any is read.
 void check_views(const std::string& view_dir, const std::vector<std::string>& images) {
-  std::vector<markloop::tools::FileId> inputs;
+  std::vector<markloop::platform::FileId> inputs;
   for (const std::string& image : images)
-    if (const auto id = markloop::tools::regular_file_id(image)) inputs.push_back(*id);
+    if (const auto id = markloop::platform::regular_file_id(image)) inputs.push_back(*id);
   for (const std::string& image : images) {
     const std::string view = view_path(view_dir, image);
-    const auto id = markloop::tools::regular_file_id(view);
+    const auto id = markloop::platform::regular_file_id(view);
     if (id && std::find(inputs.begin(), inputs.end(), *id) != inputs.end())
       markloop::cli::fail(view + ": the view of " + image + " would overwrite an input image");
   }

@@ -166,7 +166,7 @@ void check_outputs(const Options& o) {
                                 o.detections,       o.landmarks};
   for (const std::string* output : {&o.svg, &o.png, &o.json})
     for (const std::string& input : inputs)
-      if (!output->empty() && tools::overwrites(*output, input))
+      if (!output->empty() && platform::overwrites(*output, input))
         fail(*output + ": is the input " + input + ": an output may not overwrite it");
 }
 

@@ -410,7 +410,7 @@ void check_outputs(const Options& o) {
       {"--markings", &o.markings}, {"--poses", &o.poses}, {"--truth", &o.truth}};
   for (const std::string* output : {&o.out, &o.jsonl})
     for (const auto& [option, input] : inputs)
-      if (!output->empty() && !input->empty() && tools::overwrites(*output, *input))
+      if (!output->empty() && !input->empty() && platform::overwrites(*output, *input))
         fail(*output + ": is the " + option + " input: an output may not overwrite it");
 }
 
