@@ -124,9 +124,7 @@ Status make_out_dir(const std::filesystem::path& dir) {
 }
 
 Status save_camera(const perception::CameraModel& camera, const std::filesystem::path& dir) {
-  std::string problem;
-  if (!perception::save_camera_model(camera, (dir / "camera.yaml").string(), problem)) return error(problem);
-  return {};
+  return perception::save_camera_model(camera, (dir / "camera.yaml").string());
 }
 
 // markings.txt: its record count, then the records gathered in `part`

@@ -284,20 +284,17 @@ Result<CameraModel> load_camera_model(const std::string& path) {
   }
 }
 
-bool save_camera_model(const CameraModel& model, const std::string& path, std::string& error) {
+Status save_camera_model(const CameraModel& model, const std::string& path) {
   try {
     cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    if (!fs.isOpened()) {
-      error = path + ": cannot open for writing";
-      return false;
-    }
+    if (!fs.isOpened()) return error(path + ": cannot open for writing");
     fs << "image_width" << model.width() << "image_height" << model.height();
     if (!model.is_pinhole()) {
       cv::Mat H(3, 3, CV_64F);
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) H.at<double>(r, c) = model.image_to_ground_homography()(r, c);
       fs << "ground_homography" << H;
-      return true;
+      return {};
     }
     const auto& k = model.intrinsics();
     const auto& m = model.mounting();
@@ -308,10 +305,9 @@ bool save_camera_model(const CameraModel& model, const std::string& path, std::s
     fs << "mount_x" << m.x_m << "mount_y" << m.y_m << "mount_height" << m.height_m;
     fs << "mount_pitch_deg" << m.pitch_rad / kRadiansPerDegree << "mount_roll_deg"
        << m.roll_rad / kRadiansPerDegree << "mount_yaw_deg" << m.yaw_rad / kRadiansPerDegree;
-    return true;
+    return {};
   } catch (const std::exception& e) {
-    error = path + ": " + e.what();
-    return false;
+    return error(path + ": " + e.what());
   }
 }
 

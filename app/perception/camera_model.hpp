@@ -72,7 +72,7 @@ class CameraModel {
 // Reads a calibration file. An error says "PATH: what is wrong".
 Result<CameraModel> load_camera_model(const std::string& path);
 // Writes a calibration file that load_camera_model() reads back.
-bool save_camera_model(const CameraModel& model, const std::string& path, std::string& error);
+Status save_camera_model(const CameraModel& model, const std::string& path);
 
 // The simulator's default camera (and the ECU's when no calibration is
 // given): 1280x512 grey, 71 degrees wide, 1.5 m high, 12 degrees down.

@@ -78,8 +78,7 @@ TEST_CASE("Pinhole camera: geometry follows the mounting") {
 
 TEST_CASE("Camera files round-trip through OpenCV YAML") {
   const auto path = scratch("default.yaml").string();
-  std::string error;
-  REQUIRE(save_camera_model(default_camera_model(), path, error));
+  REQUIRE(save_camera_model(default_camera_model(), path));
   const auto loaded = load_camera_model(path);
   REQUIRE(loaded);
   CHECK(loaded->width() == 1280);
