@@ -83,9 +83,7 @@ bool count_drive_frames(const std::string& dir, long& frames, std::string& error
   return true;
 }
 
-}  // namespace
-
-bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images, std::string& error) {
+bool read_annotations(const std::string& dir, std::vector<AnnotatedImage>& images, std::string& error) {
   CsvReader csv(dir + "/annotations.csv", kMaxAnnotationBytes);
   if (!csv.read_header("image,label,x1,y1", "image,label,x1,y1,x2,y2,x3,y3,x4,y4", error)) return false;
   std::map<std::string, AnnotatedImage> by_name;
@@ -126,7 +124,7 @@ bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& image
   return true;
 }
 
-bool load_drive_annotations(const std::string& dir, int step, std::vector<AnnotatedImage>& images,
+bool read_drive_annotations(const std::string& dir, int step, std::vector<AnnotatedImage>& images,
                             std::string& error) {
   // Frames without visible markings count too (false detections): those
   // the drive has, up to the last with one.
@@ -166,6 +164,22 @@ bool load_drive_annotations(const std::string& dir, int step, std::vector<Annota
   images.clear();
   for (auto& [frame, image] : by_frame) images.push_back(std::move(image));
   return true;
+}
+
+}  // namespace
+
+Result<std::vector<AnnotatedImage>> load_annotations(const std::string& dir) {
+  std::vector<AnnotatedImage> images;
+  std::string problem;
+  if (!read_annotations(dir, images, problem)) return error(problem);
+  return images;
+}
+
+Result<std::vector<AnnotatedImage>> load_drive_annotations(const std::string& dir, int step) {
+  std::vector<AnnotatedImage> images;
+  std::string problem;
+  if (!read_drive_annotations(dir, step, images, problem)) return error(problem);
+  return images;
 }
 
 int clip_of(const std::string& name) {

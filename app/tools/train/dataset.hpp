@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "app/common/result.hpp"
+
 namespace markloop::perception::train {
 
 struct Annotation {
@@ -27,16 +29,15 @@ struct AnnotatedImage {
 inline constexpr std::size_t kMaxAnnotationBytes = std::size_t{64} << 20;
 inline constexpr std::size_t kMaxDriveFileBytes = std::size_t{256} << 20;
 
-// Images in file-name order. False with `error` = "FILE:LINE: what is wrong"
+// Images in file-name order, or the error "FILE:LINE: what is wrong"
 // ("FILE: what" when it cannot be read, is a directory or is too big).
-bool load_annotations(const std::string& dir, std::vector<AnnotatedImage>& images, std::string& error);
+Result<std::vector<AnnotatedImage>> load_annotations(const std::string& dir);
 
 // A simulator drive (markloop-sim drive): DIR/visible.csv
 // (`frame,id,class,x1,y1,...,x4,y4`) as annotations of every `step`-th frame
 // of DIR/frames.y4m; names are frame numbers. Its frames must lie among
 // DIR/frames.csv's.
-bool load_drive_annotations(const std::string& dir, int step, std::vector<AnnotatedImage>& images,
-                            std::string& error);
+Result<std::vector<AnnotatedImage>> load_drive_annotations(const std::string& dir, int step);
 
 // The dataset's clips: frames come in blocks of 60 consecutive numbers
 // (roadmark_NNNN.jpg -> (NNNN - 1) / 60); -1 when the name has no number.

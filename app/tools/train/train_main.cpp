@@ -433,10 +433,9 @@ ImageSet extract(const std::string& dir, const std::string& camera_path, bool re
   ImageSet set;
   set.dir = dir;
   set.real = real;
-  std::string error;
-  if (drive ? !train::load_drive_annotations(dir, kDriveStep, set.images, error)
-            : !train::load_annotations(dir, set.images, error))
-    fail(error);
+  auto images = drive ? train::load_drive_annotations(dir, kDriveStep) : train::load_annotations(dir);
+  if (!images) fail(images.message());
+  set.images = std::move(*images);
   const auto camera = load_camera_model(camera_path);
   if (!camera) fail(camera.message());
   const auto detector_config = load_detector_config(camera_path);
