@@ -57,7 +57,8 @@ struct ObservationGate {
 // defaults (why: the descriptions in settings.cpp and docs/decisions.md):
 // more sightings keep single-frame clutter out, the odometry prior and the
 // frame distance reject look-alike places, loaded places need confirming,
-// and a loose match would give a poor relative pose. k stays at the
+// a loose match would give a poor relative pose, and places close loops
+// where the sequences cannot (turns into old roads, the other direction). k stays at the
 // engine's: shorter sequences let look-alike city blocks confirm wrong
 // alignments across sessions.
 inline EngineConfig ecu_engine_defaults() {
@@ -67,6 +68,7 @@ inline EngineConfig ecu_engine_defaults() {
   c.match.max_drift_rel = 0.02;
   c.match.max_frame_distance_m = 5.0;
   c.match.confirm_loaded_places = true;
+  c.match.place_landmarks = 3;
   return c;
 }
 

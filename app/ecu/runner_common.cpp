@@ -151,18 +151,22 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
                  (unsigned long long)d.horizon_measured, (unsigned long long)d.horizon_unmeasured,
                  (unsigned long long)d.horizon_moves, ecu.detector().horizon_shift());
     const EngineCounters& e = ecu.engine().counters();
+    const PlaceCounters& p = ecu.engine().place_counters();
     std::fprintf(
         stderr,
         "markloop: engine %llu sequences, %llu candidates, %llu too recent, %llu residual, "
         "%llu drift, %llu frames apart, %llu loaded-map single sequences, "
         "%llu loaded-map hypotheses, %llu loaded-map disagreeing, "
-        "%llu matches (%llu with the pose refined over a run)\n",
+        "%llu matches (%llu with the pose refined over a run, %llu by place); places: %llu queries, "
+        "%llu hypotheses, %llu ambiguous, %llu beyond the drift limits\n",
         (unsigned long long)e.sequences_created, (unsigned long long)e.candidates,
         (unsigned long long)e.candidates_too_recent, (unsigned long long)e.candidates_rejected_residual,
         (unsigned long long)e.candidates_rejected_drift,
         (unsigned long long)e.candidates_rejected_frames_apart, (unsigned long long)e.loaded_single_sequences,
         (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
-        (unsigned long long)e.matches, (unsigned long long)e.closures_extended);
+        (unsigned long long)e.matches, (unsigned long long)e.closures_extended,
+        (unsigned long long)e.place_matches, (unsigned long long)p.queries, (unsigned long long)p.hypotheses,
+        (unsigned long long)p.ambiguous, (unsigned long long)p.rejected_drift);
   }
   if (const Status written = write_summary(ecu, options, wall_seconds, mode, rss); !written) {
     std::fprintf(stderr, "markloop: %s\n", written.message().c_str());
@@ -216,7 +220,7 @@ void print_run_figures(std::FILE* out, const Ecu& ecu, double wall_seconds, cons
 }
 
 // Where the engine's candidates went, and its rarer events; closes the summary.
-void print_engine_counters(std::FILE* out, const EngineCounters& e) {
+void print_engine_counters(std::FILE* out, const EngineCounters& e, const PlaceCounters& p) {
   const std::pair<const char*, std::uint64_t> engine_counters[] = {
       {"landmarks_released", e.landmarks_released},
       {"passing_frames_forgotten", e.passing_frames_forgotten},
@@ -239,6 +243,11 @@ void print_engine_counters(std::FILE* out, const EngineCounters& e) {
       {"matches", e.matches},
       {"closures_extended", e.closures_extended},
       {"matches_over_skipped_row", e.matches_over_skipped_row},
+      {"place_matches", e.place_matches},
+      {"place_queries", p.queries},
+      {"place_hypotheses", p.hypotheses},
+      {"place_ambiguous", p.ambiguous},
+      {"place_rejected_drift", p.rejected_drift},
   };
   std::fprintf(out, " \"engine\": {");
   for (std::size_t i = 0; i < std::size(engine_counters); ++i)
@@ -256,7 +265,7 @@ Status write_summary(const Ecu& ecu, const RunOptions& options, double wall_seco
   std::FILE* out = ::open_memstream(&text, &length);
   if (out == nullptr) return error(options.summary_json + ": out of memory");
   print_run_figures(out, ecu, wall_seconds, mode, rss);
-  print_engine_counters(out, ecu.engine().counters());
+  print_engine_counters(out, ecu.engine().counters(), ecu.engine().place_counters());
   const bool formatted = std::fclose(out) == 0;
   const std::error_code ec =
       formatted ? platform::write_file_replacing(options.summary_json.c_str(), std::string_view(text, length))

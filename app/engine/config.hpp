@@ -85,6 +85,17 @@ struct MatchConfig {
   bool confirm_loaded_places = false;
   double confirm_min_gap_m = 50.0;
   double confirm_within_m = 300.0;
+  // Place matching (app/engine/place_matcher.hpp), beside the sequences: when
+  // this many of the landmarks released within the last place_window_m agree,
+  // in any order, with landmarks stored where the odometry puts them (within
+  // the drift limits above, at most place_search_m), the place is a loop,
+  // unless another place within place_distinct_m (at least place_search_m)
+  // fits as well. 0 is off: the
+  // paper's sequences alone.
+  unsigned place_landmarks = 0;
+  double place_window_m = 60.0;
+  double place_search_m = 40.0;
+  double place_distinct_m = 150.0;
 };
 
 struct DatabaseConfig {

@@ -72,6 +72,10 @@ SequenceDatabase::SequenceDatabase(const DatabaseConfig& config, const MatchConf
   const std::size_t sequence_capacity = power_of_two_at_least(config.sequence_capacity);
   landmarks_ = LargeArray<Landmark>(landmark_capacity);
   landmark_mask_ = landmark_capacity - 1;
+  cell_head_ = LargeArray<LandmarkId>(2 * landmark_capacity);
+  std::fill_n(&cell_head_[0], 2 * landmark_capacity, kNoLandmark);
+  cell_mask_ = 2 * landmark_capacity - 1;
+  cell_older_ = LargeArray<LandmarkId>(landmark_capacity);
   sequence_ids_ = LargeArray<LandmarkId>(sequence_capacity * k_);
   sequence_tag_ = LargeArray<std::uint32_t>(sequence_capacity);
   sequence_older_ = LargeArray<std::uint32_t>(sequence_capacity);
@@ -89,8 +93,8 @@ std::uint64_t SequenceDatabase::bytes_needed(const DatabaseConfig& config, unsig
   const std::uint64_t landmarks = power_of_two(config.landmark_capacity);
   const std::uint64_t sequences = power_of_two(config.sequence_capacity);
   const std::uint64_t slots = power_of_two(2 * sequences);
-  return landmarks * sizeof(Landmark) + sequences * (k * sizeof(LandmarkId) + 3 * sizeof(std::uint32_t)) +
-         slots * sizeof(Slot);
+  return landmarks * (sizeof(Landmark) + 3 * sizeof(LandmarkId)) +
+         sequences * (k * sizeof(LandmarkId) + 3 * sizeof(std::uint32_t)) + slots * sizeof(Slot);
 }
 
 void SequenceDatabase::clear() {
@@ -113,7 +117,16 @@ LandmarkId SequenceDatabase::add_landmark(const Landmark& landmark) {
   Landmark& stored = landmarks_[id & landmark_mask_];
   stored = landmark;
   stored.id = id;
+  const std::size_t slot = cell_slot(landmark.label, cell_of(landmark.x), cell_of(landmark.y));
+  cell_older_[id & landmark_mask_] = cell_head_[slot];
+  cell_head_[slot] = id;
   return id;
+}
+
+std::size_t SequenceDatabase::cell_slot(Label label, std::int64_t cx, std::int64_t cy) const {
+  const std::uint64_t h =
+      mix(mix(mix(0x63656C6Cull ^ label) ^ static_cast<std::uint64_t>(cx)) ^ static_cast<std::uint64_t>(cy));
+  return static_cast<std::size_t>(h) & cell_mask_;
 }
 
 const Landmark* SequenceDatabase::landmark(LandmarkId id) const {
@@ -253,7 +266,8 @@ DatabaseStats SequenceDatabase::stats() const {
   s.sequence_capacity = sequence_tag_.size();
   s.index_slots = slots_.size();
   s.index_used = slots_used_;
-  s.bytes_landmarks = landmarks_.size() * sizeof(Landmark);
+  s.bytes_landmarks =
+      landmarks_.size() * sizeof(Landmark) + (cell_head_.size() + cell_older_.size()) * sizeof(LandmarkId);
   s.bytes_sequences = sequence_ids_.size() * sizeof(LandmarkId) +
                       sequence_tag_.size() * 3 * sizeof(std::uint32_t) + slots_.size() * sizeof(Slot);
   s.landmarks_evicted = landmarks_evicted_;

@@ -1,5 +1,8 @@
 // Bounded database of landmarks and sequences of k landmarks.
 //
+// Landmarks are also indexed by label and ground cell (a hash of the cell's
+// chains, newest first), so that places can be found by position.
+//
 // Storage is allocated once, in the constructor; nothing grows afterwards.
 // Both stores are rings: when full, the oldest entry is evicted. Sequences are
 // indexed by an open-addressing hash table (linear probing, backward-shift
@@ -10,6 +13,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -91,6 +95,14 @@ class SequenceDatabase {
   // nullptr when the id was never stored or has been evicted.
   const Landmark* landmark(LandmarkId id) const;
 
+  // Calls visit(const Landmark&) for live landmarks of `label` whose position
+  // lies within `radius_m` of (x, y), newest first within each ground cell;
+  // at most `per_cell` landmarks of each cell are examined, so that a road
+  // driven a thousand times costs no more than one driven a few times.
+  template <typename Visitor>
+  void for_each_landmark_near(Label label, double x, double y, double radius_m, unsigned per_cell,
+                              Visitor&& visit) const;
+
   // Stores a sequence of k live landmark ids; returns false (and stores
   // nothing) when an id is not live.
   bool add_sequence(std::span<const LandmarkId> ids);
@@ -143,6 +155,13 @@ class SequenceDatabase {
     std::uint32_t head = kNone;  // newest sequence in the chain
   };
 
+  // Side of the ground cells of the landmark index, metres.
+  static constexpr double kCell_m = 40.0;
+  static std::int64_t cell_of(double coordinate) {
+    return static_cast<std::int64_t>(std::floor(coordinate / kCell_m));
+  }
+  std::size_t cell_slot(Label label, std::int64_t cx, std::int64_t cy) const;
+
   std::uint64_t label_hash(const SequenceShape& shape) const;
   static std::uint32_t key_tag(std::uint64_t label_hash, std::span<const std::uint32_t> bins);
   std::uint32_t find_slot(std::uint32_t tag) const;
@@ -162,6 +181,13 @@ class SequenceDatabase {
   LandmarkId next_landmark_id_ = 0;
   LandmarkId oldest_landmark_id_ = 0;
 
+  // Landmark index: per slot (label and cell, hashed) the newest landmark;
+  // per landmark the next older one of its slot. A chain ends at an id no
+  // longer live: eviction is oldest first, so all behind it are gone too.
+  LargeArray<LandmarkId> cell_head_;
+  std::size_t cell_mask_;
+  LargeArray<LandmarkId> cell_older_;  // indexed like landmarks_
+
   LargeArray<LandmarkId> sequence_ids_;  // k per sequence
   LargeArray<std::uint32_t> sequence_tag_;
   LargeArray<std::uint32_t> sequence_older_;  // toward the chain tail
@@ -177,6 +203,29 @@ class SequenceDatabase {
   std::uint64_t landmarks_evicted_ = 0;
   std::uint64_t sequences_evicted_ = 0;
 };
+
+template <typename Visitor>
+void SequenceDatabase::for_each_landmark_near(Label label, double x, double y, double radius_m,
+                                              unsigned per_cell, Visitor&& visit) const {
+  if (!(radius_m >= 0.0) || !std::isfinite(x) || !std::isfinite(y)) return;
+  const std::int64_t x0 = cell_of(x - radius_m), x1 = cell_of(x + radius_m);
+  const std::int64_t y0 = cell_of(y - radius_m), y1 = cell_of(y + radius_m);
+  const double radius_sq = radius_m * radius_m;
+  for (std::int64_t cx = x0; cx <= x1; ++cx) {
+    for (std::int64_t cy = y0; cy <= y1; ++cy) {
+      unsigned examined = 0;
+      for (LandmarkId id = cell_head_[cell_slot(label, cx, cy)]; examined < per_cell; ++examined) {
+        const Landmark* l = landmark(id);
+        if (l == nullptr) break;
+        const double dx = l->x - x, dy = l->y - y;
+        // Other labels and cells share a slot now and then.
+        if (l->label == label && cell_of(l->x) == cx && cell_of(l->y) == cy && dx * dx + dy * dy <= radius_sq)
+          visit(*l);
+        id = cell_older_[id & landmark_mask_];
+      }
+    }
+  }
+}
 
 template <typename Visitor>
 unsigned SequenceDatabase::for_each_match(const SequenceShape& query, unsigned limit, bool& limited,

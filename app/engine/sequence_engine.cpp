@@ -62,6 +62,13 @@ const char* validate(const EngineConfig& c) {
   if (!finite_non_negative(c.match.max_frame_distance_m)) return "frame distance limit must be non-negative";
   if (!finite_non_negative(c.match.confirm_within_m) || !finite_non_negative(c.match.confirm_min_gap_m))
     return "confirmation distances must be non-negative";
+  if (c.match.place_landmarks != 0 &&
+      (c.match.place_landmarks < kMinSequenceLength || c.match.place_landmarks > kMaxSequenceLength))
+    return "place landmarks must be 0 (off) or between 2 and 10";
+  if (!finite_positive(c.match.place_window_m) || !finite_positive(c.match.place_search_m))
+    return "place window and search distance must be positive numbers of metres";
+  if (!finite_positive(c.match.place_distinct_m) || c.match.place_distinct_m > 10000.0)
+    return "place distinctness radius must lie between 0 and 10000 m";
   if (c.database.landmark_capacity < kMinDatabaseCapacity ||
       c.database.landmark_capacity > kMaxDatabaseCapacity)
     return "landmark capacity must be between 16 and 2^30";
@@ -75,6 +82,7 @@ SequenceEngine::SequenceEngine(const EngineConfig& config)
     : config_(config),
       tracker_(config.tracker),
       database_(config.database, config.match, config.chain.k),
+      places_(config.match),
       // The history must reach back past the release lag, with room for
       // landmarks released late; a few centimetres apart is precise enough.
       history_spacing_m_(std::max(0.02, (config.tracker.release_lag_m + 25.0) / kFrameHistory)) {}
@@ -161,6 +169,7 @@ void SequenceEngine::flush(MatchSink& sink) {
 void SequenceEngine::break_chains(MatchSink& sink) {
   flush(sink);
   rows_.clear();
+  places_.forget();
   have_previous_pose_ = false;
   ++counters_.chain_breaks;
 }
@@ -217,14 +226,30 @@ void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
     if (rows_.size() == chain_config.k + chain_config.max_skipped_rows) rows_.erase_at(0);
     rows_.push_back(Row{landmark.station, {}});
   }
-  if (!rows_.back().members.push_back(id)) {
+  if (places_.enabled() && landmark.has_car_pose) places_.remember(*database_.landmark(id));
+  bool matched = false;
+  if (!rows_.back().members.push_back(id))
     ++counters_.landmarks_unchained;
-    return;
-  }
-  if (rows_.size() >= chain_config.k) chain(id, may_match, sink);
+  else if (rows_.size() >= chain_config.k)
+    matched = chain(id, may_match, sink);
+  if (!matched && may_match) match_place(sink);
 }
 
-void SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {
+void SequenceEngine::match_place(MatchSink& sink) {
+  if (!places_.enabled() || !places_.match(database_, best_)) return;
+  set_relative_pose(best_);
+  const double limit = config_.match.max_frame_distance_m;
+  if (limit > 0.0 && best_.has_relative_pose &&
+      std::hypot(best_.relative_pose.x, best_.relative_pose.y) > limit) {
+    ++counters_.candidates_rejected_frames_apart;
+    return;
+  }
+  ++counters_.matches;
+  ++counters_.place_matches;
+  sink.on_match(best_);
+}
+
+bool SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {
   const unsigned k = config_.chain.k;
   // The rows before the new landmark's, oldest first.
   const unsigned earlier = static_cast<unsigned>(rows_.size()) - 1;
@@ -293,6 +318,7 @@ void SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {
     extend_closure_run(best_);
     sink.on_match(best_);
   }
+  return found;
 }
 
 void SequenceEngine::hold_for_release(const MatchEvent& held) {

@@ -17,6 +17,7 @@
 #include "app/common/fixed_vector.hpp"
 #include "app/engine/config.hpp"
 #include "app/engine/landmark_tracker.hpp"
+#include "app/engine/place_matcher.hpp"
 #include "app/engine/rigid_alignment.hpp"
 #include "app/engine/sequence_database.hpp"
 #include "app/engine/types.hpp"
@@ -91,6 +92,7 @@ struct EngineCounters {
   // Of matches, found by a query stepping over a row (a plain query that meets
   // a stored sequence over a skipped row is not counted here).
   std::uint64_t matches_over_skipped_row = 0;
+  std::uint64_t place_matches = 0;  // of matches, by place (PlaceMatcher)
 };
 
 class SequenceEngine {
@@ -115,6 +117,7 @@ class SequenceEngine {
   const EngineConfig& config() const { return config_; }
   const EngineCounters& counters() const { return counters_; }
   const TrackerCounters& tracker_counters() const { return tracker_.counters(); }
+  const PlaceCounters& place_counters() const { return places_.counters(); }
   const SequenceDatabase& database() const { return database_; }
   // Between frames only: loading a saved map at start-up, clearing on command.
   SequenceDatabase& mutable_database() { return database_; }
@@ -133,8 +136,10 @@ class SequenceEngine {
   bool represent_by_passing_frame(Landmark& landmark);
   void release(Landmark landmark, MatchSink& sink);
   // Stores the sequences ending at `id`; looks for their matches first when
-  // `may_match`.
-  void chain(LandmarkId id, bool may_match, MatchSink& sink);
+  // `may_match`. True when one matched.
+  bool chain(LandmarkId id, bool may_match, MatchSink& sink);
+  // The newest landmark's place, when no sequence matched it.
+  void match_place(MatchSink& sink);
   // Best verified match of one new sequence (`over_skipped_row`: it steps
   // over one of the earlier rows); false when there is none. Each candidate
   // the database proposes goes through verify_candidate(); keep_if_best()
@@ -203,6 +208,7 @@ class SequenceEngine {
   EngineConfig config_;
   LandmarkTracker tracker_;
   SequenceDatabase database_;
+  PlaceMatcher places_;
   EngineCounters counters_;
 
   double odometer_ = 0.0;

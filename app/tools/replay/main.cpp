@@ -64,6 +64,15 @@ engine (each value must lie in the range given):
   --min-observations N   detections needed to make a landmark, 1 to 1000;
                          default 2
   --skip-rows N          rows a sequence may step over, 0 or 1; default 1
+  --place N              place matching beside the sequences: N recent
+                         landmarks agreeing in any order with those stored
+                         where the odometry puts the car, 2 to 10; default 0
+                         (off: the paper's sequences alone)
+  --max-drift-rel R      odometry prior: two visits of a place lie at most
+                         5 m + R * distance driven between them apart, 0 to
+                         1; default 0 (off)
+  --max-frame-distance M a loop's two frames lie at most this far apart by
+                         its relative pose, 0 to 10000 m; default 0 (no limit)
   --sequence-capacity N  database size in sequences, 16 to 1073741824 (2^30);
                          default 1048576
   --landmark-capacity N  database size in landmarks, 16 to 1073741824 (2^30);
@@ -125,6 +134,9 @@ constexpr OptionSpec kOptions[] = {
     {"--commit-after", "S", "a marking unseen this long has left view"},
     {"--min-observations", "N", "detections needed to make a landmark"},
     {"--skip-rows", "N", "rows a sequence may step over"},
+    {"--place", "N", "place matching: N landmarks agreeing in any order"},
+    {"--max-drift-rel", "R", "odometry prior, share of the distance driven"},
+    {"--max-frame-distance", "M", "largest distance between a loop's two frames"},
     {"--sequence-capacity", "N", "database size in sequences"},
     {"--landmark-capacity", "N", "database size in landmarks"},
     {"--compat", "", "run the authors' batch program instead"},
@@ -187,6 +199,15 @@ constexpr NumericOption kNumericOptions[] = {
     {"--skip-rows",
      {0, 1, "", true},
      [](Options& o, double v) { o.engine.chain.max_skipped_rows = static_cast<unsigned>(v); }},
+    {"--place",
+     {0, kMaxSequenceLength, "", true},
+     [](Options& o, double v) { o.engine.match.place_landmarks = static_cast<unsigned>(v); }},
+    {"--max-drift-rel",
+     {0.0, 1.0, "", false},
+     [](Options& o, double v) { o.engine.match.max_drift_rel = v; }},
+    {"--max-frame-distance",
+     {0.0, 10000.0, "metres", false},
+     [](Options& o, double v) { o.engine.match.max_frame_distance_m = v; }},
     {"--sequence-capacity",
      {16, kCapacityMax, "", true},
      [](Options& o, double v) { o.engine.database.sequence_capacity = static_cast<std::size_t>(v); }},

@@ -1,0 +1,214 @@
+#include "app/engine/place_matcher.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "app/engine/sequence_engine.hpp"
+
+namespace markloop {
+namespace {
+
+// Landmarks of one cell examined per lookup (newest first).
+constexpr unsigned kPerCell = 32;
+// Where a hypothesis expects another recent landmark: within this much, plus
+// this share of its distance from the newest one (the drift's rotation is
+// not known before the fit).
+constexpr double kPredictAbs_m = 0.75;
+constexpr double kPredictRel = 0.09;
+// Slack on the distance between two earlier visits of one place.
+constexpr double kDistinct_m = 2.0;
+// The query's landmarks must spread at least this far: side by side markings
+// of one row leave the rotation unknown.
+constexpr double kMinSpread_m = 3.0;
+
+Eigen::Vector2d point(const Landmark& l) {
+  return {l.x, l.y};
+}
+
+}  // namespace
+
+PlaceMatcher::PlaceMatcher(const MatchConfig& config) : config_(config) {}
+
+void PlaceMatcher::remember(const Landmark& landmark) {
+  while (!recent_.empty() && recent_[0].station < landmark.station - config_.place_window_m)
+    recent_.erase_at(0);
+  if (recent_.full()) recent_.erase_at(0);
+  (void)recent_.push_back(landmark);
+}
+
+bool PlaceMatcher::old_enough(const Landmark& stored, const Landmark& query) const {
+  // A loaded map's landmarks (negative stations) lie in another world frame.
+  return stored.station >= 0.0 && stored.has_car_pose &&
+         stored.station <= query.station - config_.min_separation_m &&
+         stored.t <= query.t - config_.min_separation_s;
+}
+
+bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
+  if (!enabled() || recent_.empty()) return false;
+  const Landmark& newest = recent_.back();
+  if (!newest.has_car_pose || recent_.size() < config_.place_landmarks) return false;
+  ++counters_.queries;
+  std::size_t found = 0;
+  bool overflow = false;
+  database.for_each_landmark_near(newest.label, newest.x, newest.y,
+                                  std::max(config_.place_distinct_m, config_.place_search_m), kPerCell,
+                                  [&](const Landmark& anchor) {
+                                    if (!old_enough(anchor, newest)) return;
+                                    ++counters_.hypotheses;
+                                    if (found == kMaxHypotheses) {
+                                      overflow = true;
+                                      return;
+                                    }
+                                    if (build(database, anchor, hypotheses_[found])) ++found;
+                                  });
+  // Too many look-alikes to tell them apart: no place.
+  if (overflow) {
+    ++counters_.ambiguous;
+    return false;
+  }
+  // The best hypothesis within the odometry prior...
+  std::size_t best = found;
+  for (std::size_t i = 0; i < found; ++i) {
+    if (beyond_prior(hypotheses_[i])) {
+      ++counters_.rejected_drift;
+      continue;
+    }
+    const Hypothesis& h = hypotheses_[i];
+    if (best == found || h.pairs.size() > hypotheses_[best].pairs.size() ||
+        (h.pairs.size() == hypotheses_[best].pairs.size() &&
+         h.fit.rms_residual < hypotheses_[best].fit.rms_residual))
+      best = i;
+  }
+  if (best == found) return false;
+  // ...with no rival anywhere near: another visit of the same place agrees.
+  for (std::size_t i = 0; i < found; ++i) {
+    if (disagree(hypotheses_[i], hypotheses_[best])) {
+      ++counters_.ambiguous;
+      return false;
+    }
+  }
+  ++counters_.matches;
+  fill(hypotheses_[best], static_cast<unsigned>(found), event);
+  return true;
+}
+
+bool PlaceMatcher::build(const SequenceDatabase& database, const Landmark& anchor, Hypothesis& h) {
+  const Landmark& newest = recent_.back();
+  h.pairs.clear();
+  (void)h.pairs.push_back({&newest, &anchor});
+  const Eigen::Vector2d shift = point(anchor) - point(newest);
+  // Newest first: the landmarks nearest the anchor are predicted best.
+  for (std::size_t i = recent_.size() - 1; i-- > 0 && !h.pairs.full();) {
+    const Landmark& q = recent_[i];
+    const double reach = (point(q) - point(newest)).norm();
+    const Landmark* stored = partner(database, q, point(q) + shift, kPredictAbs_m + kPredictRel * reach, h);
+    if (stored != nullptr) (void)h.pairs.push_back({&q, stored});
+  }
+  if (h.pairs.size() < config_.place_landmarks) {
+    ++counters_.too_few_pairs;
+    return false;
+  }
+  if (!fit_pairs(h)) {
+    ++counters_.rejected_residual;
+    return false;
+  }
+  double newest_stored = 0.0;
+  for (const Pair& p : h.pairs) newest_stored = std::max(newest_stored, p.stored->station);
+  h.driven_m = newest.station - newest_stored;
+  return true;
+}
+
+const Landmark* PlaceMatcher::partner(const SequenceDatabase& database, const Landmark& query,
+                                      const Eigen::Vector2d& at, double tolerance,
+                                      const Hypothesis& h) const {
+  const Landmark* best = nullptr;
+  double best_sq = 0.0;
+  database.for_each_landmark_near(query.label, at.x(), at.y(), tolerance, kPerCell, [&](const Landmark& s) {
+    if (!old_enough(s, query)) return;
+    for (const Pair& p : h.pairs)
+      if (p.stored->id == s.id) return;
+    const double d_sq = (point(s) - at).squaredNorm();
+    if (best == nullptr || d_sq < best_sq) {
+      best = &s;
+      best_sq = d_sq;
+    }
+  });
+  return best;
+}
+
+bool PlaceMatcher::fit_pairs(Hypothesis& h) const {
+  std::array<Eigen::Vector2d, kMaxSequenceLength> from{}, to{};
+  for (;;) {
+    const std::size_t n = h.pairs.size();
+    double spread_sq = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      from[i] = point(*h.pairs[i].stored);
+      to[i] = point(*h.pairs[i].query);
+      spread_sq = std::max(spread_sq, (to[i] - to[0]).squaredNorm());
+    }
+    if (spread_sq < kMinSpread_m * kMinSpread_m) return false;
+    h.fit = fit_rigid_2d({from.data(), n}, {to.data(), n});
+    if (h.fit.rms_residual <= config_.max_residual_m) return true;
+    if (n <= config_.place_landmarks) return false;
+    // The worst pair goes, never the newest (pair 0): it is the hypothesis.
+    const double c = std::cos(h.fit.transform.yaw), s = std::sin(h.fit.transform.yaw);
+    std::size_t worst = 1;
+    double worst_sq = -1.0;
+    for (std::size_t i = 1; i < n; ++i) {
+      const Eigen::Vector2d mapped(h.fit.transform.x + c * from[i].x() - s * from[i].y(),
+                                   h.fit.transform.y + s * from[i].x() + c * from[i].y());
+      const double e = (mapped - to[i]).squaredNorm();
+      if (e > worst_sq) worst = i, worst_sq = e;
+    }
+    h.pairs.erase_at(worst);
+  }
+}
+
+bool PlaceMatcher::beyond_prior(const Hypothesis& h) const {
+  Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), stored_centre = Eigen::Vector2d::Zero();
+  for (const Pair& p : h.pairs) {
+    query_centre += point(*p.query);
+    stored_centre += point(*p.stored);
+  }
+  const double apart = (query_centre - stored_centre).norm() / static_cast<double>(h.pairs.size());
+  const double allowed =
+      std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * h.driven_m);
+  const double turned = std::abs(h.fit.transform.yaw) * 180.0 / std::numbers::pi;
+  return apart > allowed ||
+         turned > config_.max_drift_yaw_abs_deg + config_.max_drift_yaw_rel_deg_per_m * h.driven_m;
+}
+
+bool PlaceMatcher::disagree(const Hypothesis& a, const Hypothesis& b) const {
+  // Two earlier visits of one place lie as far apart as the odometry drifted
+  // between them; a look-alike lies further.
+  const Landmark& anchor_a = *a.pairs[0].stored;
+  const Landmark& anchor_b = *b.pairs[0].stored;
+  const double driven = std::abs(anchor_a.station - anchor_b.station);
+  const double same_place =
+      std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * driven);
+  return (point(anchor_a) - point(anchor_b)).norm() > same_place + kDistinct_m;
+}
+
+void PlaceMatcher::fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const {
+  // Oldest query landmark first; the newest (pair 0) last, as a sequence's.
+  std::array<Pair, kMaxSequenceLength> ordered{};
+  const std::size_t n = h.pairs.size();
+  for (std::size_t i = 1; i < n; ++i) ordered[i - 1] = h.pairs[i];
+  std::sort(ordered.begin(), ordered.begin() + static_cast<std::ptrdiff_t>(n - 1),
+            [](const Pair& a, const Pair& b) { return a.query->station < b.query->station; });
+  ordered[n - 1] = h.pairs[0];
+  event = MatchEvent{};
+  event.k = static_cast<unsigned>(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    event.query[i] = *ordered[i].query;
+    event.match[i] = *ordered[i].stored;
+  }
+  event.alignment = h.fit.transform;
+  event.residual_m = h.fit.rms_residual;
+  event.aligned_pairs = event.k;
+  event.score = std::clamp(1.0 - h.fit.rms_residual / config_.max_residual_m, 0.0, 1.0);
+  event.verified_candidates = verified;
+}
+
+}  // namespace markloop

@@ -1,0 +1,92 @@
+// Place matching: the landmarks just passed, as a constellation on the
+// ground, against the landmarks stored near where the odometry says the car
+// is. It needs no order of the markings, so it closes a loop where the car
+// turns into an old road, crosses it, or drives it the other way, as soon as
+// `MatchConfig::place_landmarks` markings agree.
+//
+//   newest landmark -> stored landmarks of its label near it (hypotheses)
+//     -> each hypothesis predicts where the other recent landmarks lie in the
+//        stored map; those found there (same label) are its pairs
+//     -> rigid fit of the pairs; odometry prior on the fitted drift
+//     -> a match only when no other alignment fits as well within
+//        `place_distinct_m`: a constellation repeated nearby (the same
+//        intersection layout a block away) is never a place.
+#pragma once
+
+#include <array>
+
+#include <Eigen/Core>
+
+#include "app/common/fixed_vector.hpp"
+#include "app/engine/config.hpp"
+#include "app/engine/rigid_alignment.hpp"
+#include "app/engine/sequence_database.hpp"
+#include "app/engine/types.hpp"
+
+namespace markloop {
+
+struct MatchEvent;
+
+struct PlaceCounters {
+  std::uint64_t queries = 0;
+  std::uint64_t hypotheses = 0;  // stored landmarks of the newest one's label nearby
+  std::uint64_t too_few_pairs = 0;
+  std::uint64_t rejected_residual = 0;
+  std::uint64_t rejected_drift = 0;  // beyond the odometry prior
+  std::uint64_t ambiguous = 0;       // another alignment fitted as well
+  std::uint64_t matches = 0;
+};
+
+class PlaceMatcher {
+ public:
+  static constexpr std::size_t kMaxRecent = 16;
+
+  explicit PlaceMatcher(const MatchConfig& config);
+
+  bool enabled() const { return config_.place_landmarks > 0; }
+  // A landmark just released (stored under its id); older ones beyond the
+  // window are forgotten.
+  void remember(const Landmark& landmark);
+  // The pose was lost: the recent landmarks no longer share a frame.
+  void forget() { recent_.clear(); }
+  // The best place match of the newest remembered landmark: fills `event`'s
+  // landmarks, k, alignment, residual and score (not its relative pose).
+  bool match(const SequenceDatabase& database, MatchEvent& event);
+
+  const PlaceCounters& counters() const { return counters_; }
+
+ private:
+  struct Pair {
+    const Landmark* query = nullptr;
+    const Landmark* stored = nullptr;
+  };
+  struct Hypothesis {
+    FixedVector<Pair, kMaxSequenceLength> pairs;
+    RigidFit fit{};
+    double driven_m = 0.0;  // from the newest stored landmark to the newest query
+  };
+
+  // Pairs the recent landmarks with stored ones as `anchor` (stored, of the
+  // newest's label) predicts, then fits them; false when too few or the fit
+  // is poor.
+  bool build(const SequenceDatabase& database, const Landmark& anchor, Hypothesis& h);
+  const Landmark* partner(const SequenceDatabase& database, const Landmark& query, const Eigen::Vector2d& at,
+                          double tolerance, const Hypothesis& h) const;
+  // Drops the worst fitting pair while that brings the fit within the
+  // residual and leaves enough pairs.
+  bool fit_pairs(Hypothesis& h) const;
+  bool old_enough(const Landmark& stored, const Landmark& query) const;
+  bool beyond_prior(const Hypothesis& h) const;
+  // Whether two alignments put the newest landmark in different places.
+  // Whether two hypotheses' anchors are different places, not two visits of one.
+  bool disagree(const Hypothesis& a, const Hypothesis& b) const;
+  void fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const;
+
+  MatchConfig config_;
+  FixedVector<Landmark, kMaxRecent> recent_;  // oldest first; the newest last
+  static constexpr std::size_t kMaxHypotheses = 16;
+  std::array<Hypothesis, kMaxHypotheses> hypotheses_{};
+  PlaceCounters counters_;
+};
+
+}  // namespace markloop
