@@ -238,6 +238,8 @@ void print_errors(const TrajectoryError& before, const TrajectoryError& after) {
       "after / before %.3f\n",
       before.frames, before.ate_rmse_m, after.ate_rmse_m, before.ate_max_m, after.ate_max_m,
       before.ate_rmse_m > 0 ? after.ate_rmse_m / before.ate_rmse_m : 0.0);
+  std::printf("ATE after Sim(2) alignment (scale %.4f and %.4f): before %.3f m, after %.3f m\n",
+              before.sim2_scale, after.sim2_scale, before.ate_sim2_rmse_m, after.ate_sim2_rmse_m);
   std::printf("RPE per %.0f m (%zu pairs): before %.3f m / %.3f deg, after %.3f m / %.3f deg\n",
               kRpeStretch_m, before.rpe_pairs, before.rpe_translation_rmse_m, before.rpe_rotation_mean_deg,
               after.rpe_translation_rmse_m, after.rpe_rotation_mean_deg);

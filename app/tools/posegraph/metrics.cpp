@@ -48,6 +48,32 @@ void add_rpe(const Paired& p, TrajectoryError& e) {
   e.rpe_rotation_mean_deg = sum_rot / static_cast<double>(e.rpe_pairs);
 }
 
+// RMSE after the best rotation, translation and scale (Umeyama in 2-D).
+void add_sim2_ate(const Paired& p, TrajectoryError& e) {
+  const std::size_t n = p.truth.size();
+  double fx = 0, fy = 0, tx = 0, ty = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    fx += p.estimate[i].x, fy += p.estimate[i].y, tx += p.truth[i].x, ty += p.truth[i].y;
+  fx /= static_cast<double>(n), fy /= static_cast<double>(n), tx /= static_cast<double>(n),
+      ty /= static_cast<double>(n);
+  double dot = 0, cross = 0, spread = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double ax = p.estimate[i].x - fx, ay = p.estimate[i].y - fy;
+    const double bx = p.truth[i].x - tx, by = p.truth[i].y - ty;
+    dot += ax * bx + ay * by, cross += ax * by - ay * bx, spread += ax * ax + ay * ay;
+  }
+  if (spread <= 0) return;
+  const double angle = std::atan2(cross, dot), c = std::cos(angle), s = std::sin(angle);
+  e.sim2_scale = std::hypot(dot, cross) / spread;
+  double sum_sq = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double ax = p.estimate[i].x - fx, ay = p.estimate[i].y - fy;
+    const double x = tx + e.sim2_scale * (c * ax - s * ay), y = ty + e.sim2_scale * (s * ax + c * ay);
+    sum_sq += std::pow(x - p.truth[i].x, 2) + std::pow(y - p.truth[i].y, 2);
+  }
+  e.ate_sim2_rmse_m = std::sqrt(sum_sq / static_cast<double>(n));
+}
+
 }  // namespace
 
 std::optional<TrajectoryError> trajectory_error(std::span<const Pose2> estimate, const Truth& truth) {
@@ -64,6 +90,7 @@ std::optional<TrajectoryError> trajectory_error(std::span<const Pose2> estimate,
     e.ate_max_m = std::max(e.ate_max_m, d);
   }
   e.ate_rmse_m = std::sqrt(sum_sq / static_cast<double>(e.frames));
+  add_sim2_ate(p, e);
   add_rpe(p, e);
   return e;
 }

@@ -16,6 +16,10 @@ struct TrajectoryError {
   Pose2 alignment;         // truth ≈ compose(alignment, estimate)
   double ate_rmse_m = 0.0;
   double ate_max_m = 0.0;
+  // The same after a similarity alignment (scale too): what remains once the
+  // odometry's scale error, which revisits cannot observe, is taken out.
+  double ate_sim2_rmse_m = 0.0;
+  double sim2_scale = 1.0;
   // Over every pair of frames 100 m apart along the truth: RMS of the
   // relative translation's error (m) and mean of the heading's (deg).
   std::size_t rpe_pairs = 0;
