@@ -18,11 +18,11 @@ struct FigureContent {
   const std::vector<Pose2>* route = nullptr;  // true pose per frame
   const std::vector<WorldMarking>* markings = nullptr;
   const std::vector<LoopOutcome>* loops = nullptr;
+  std::string title;
+  std::string subtitle;
   // A corrected trajectory (markloop-posegraph's after.tum) already aligned
   // to the truth; drawn when set.
   const std::vector<Pose2>* corrected = nullptr;
-  std::string title;
-  std::string subtitle;
 };
 
 // A TUM trajectory (time in the drive's clock) as a pose per frame of the
