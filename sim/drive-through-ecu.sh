@@ -9,7 +9,9 @@
 #
 # Outputs in DIR: the sim's files, ecu-can.log (everything the ECU sent),
 # ecu-detections.csv, ecu-landmarks.csv, ecu-summary.json (timings, counters),
-# eval.json and loops.svg/loops.png (markloop-eval). frames.y4m (about 0.65 MB
+# posegraph/ (markloop-posegraph: before/after.tum and .kitti, posegraph.svg,
+# solver.txt), eval.json and loops.svg/loops.png (markloop-eval, with the
+# corrected trajectory drawn). frames.y4m (about 0.65 MB
 # per frame) is deleted after the ECU ran unless --keep-frames.
 set -euo pipefail
 
@@ -50,7 +52,7 @@ else
   name=$scenario
 fi
 [ -n "$out" ] || out=build/demo-ecu-${name%%.*}
-for tool in bin/markloop-sim bin/markloop bin/markloop-eval; do
+for tool in bin/markloop-sim bin/markloop bin/markloop-posegraph bin/markloop-eval; do
   [ -x "$bin/$tool" ] || die "$bin/$tool is missing: build first (cmake --build --preset host)"
 done
 
@@ -64,5 +66,8 @@ echo "drive-through-ecu: markloop (file mode${realtime:+, real time})"
   --summary "$out/ecu-summary.json" \
   --set realtime.mlockall=false "${map_args[@]}" "${realtime[@]}"
 [ "$keep_frames" = 1 ] || rm -f "$out/frames.y4m"
+echo "drive-through-ecu: pose graph (odometry and the ECU's loops)"
+"$bin/bin/markloop-posegraph" --can-in "$out/odometry.log" --can-out "$out/ecu-can.log" \
+  --truth "$out/frames.csv" --out "$out/posegraph"
 echo "drive-through-ecu: evaluation"
-"$bin/bin/markloop-eval" "$out" --json "$out/eval.json"
+"$bin/bin/markloop-eval" "$out" --json "$out/eval.json" --corrected "$out/posegraph/after.tum"

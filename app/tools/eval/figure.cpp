@@ -13,6 +13,7 @@
 
 #include "app/perception/marking_classes.hpp"
 #include "app/tools/common/tool_files.hpp"
+#include "app/tools/common/trajectory.hpp"
 
 namespace markloop::eval {
 
@@ -42,6 +43,7 @@ constexpr std::array<Rgb, perception::kMarkingClassCount> kClassColours = {{
     {57, 59, 121},
 }};
 constexpr Rgb kRoute{40, 40, 40};
+constexpr Rgb kCorrected{31, 119, 180};
 constexpr Rgb kCorrect{0, 160, 60};
 constexpr Rgb kWrong{220, 30, 30};
 
@@ -161,9 +163,9 @@ void svg_header(std::FILE* f, const Layout& layout, const FigureContent& c) {
 }
 
 // Route: one polyline, decimated to about a pixel per point.
-void svg_route(std::FILE* f, const Layout& layout, const std::vector<Pose2>& route) {
+void svg_route(std::FILE* f, const Layout& layout, const std::vector<Pose2>& route, Rgb colour = kRoute) {
   std::fprintf(f, "<polyline fill=\"none\" stroke=\"%s\" stroke-width=\"1.2\" points=\"",
-               svg_colour(kRoute).c_str());
+               svg_colour(colour).c_str());
   double last_x = -1e9, last_y = -1e9;
   for (std::size_t i = 0; i < route.size(); ++i) {
     const double x = layout.px(route[i].x), y = layout.py(route[i].y);
@@ -207,7 +209,8 @@ void svg_scale_bar(std::FILE* f, const Layout& layout) {
                length_text(bar_m).c_str());
 }
 
-void svg_legend(std::FILE* f, const Layout& layout, const std::vector<WorldMarking>& markings) {
+void svg_legend(std::FILE* f, const Layout& layout, const std::vector<WorldMarking>& markings,
+                bool corrected) {
   int y = Layout::kTitle + Layout::kMargin + 10;
   const int x = layout.legend_x();
   const auto legend_line = [&](Rgb colour, const char* text) {
@@ -218,6 +221,7 @@ void svg_legend(std::FILE* f, const Layout& layout, const std::vector<WorldMarki
     y += 20;
   };
   legend_line(kRoute, "route (truth)");
+  if (corrected) legend_line(kCorrected, "corrected (pose graph)");
   legend_line(kCorrect, "correct loop");
   legend_line(kWrong, "wrong loop");
   y += 6;
@@ -267,7 +271,8 @@ void png_scale_bar(cv::Mat& image, const Layout& layout) {
               {0, 0, 0}, 1, cv::LINE_AA);
 }
 
-void png_legend(cv::Mat& image, const Layout& layout, const std::vector<WorldMarking>& markings) {
+void png_legend(cv::Mat& image, const Layout& layout, const std::vector<WorldMarking>& markings,
+                bool corrected) {
   int y = Layout::kTitle + Layout::kMargin + 10;
   const int x = layout.legend_x();
   const auto legend_line = [&](Rgb colour, const char* text) {
@@ -276,6 +281,7 @@ void png_legend(cv::Mat& image, const Layout& layout, const std::vector<WorldMar
     y += 20;
   };
   legend_line(kRoute, "route (truth)");
+  if (corrected) legend_line(kCorrected, "corrected (pose graph)");
   legend_line(kCorrect, "correct loop");
   legend_line(kWrong, "wrong loop");
   y += 6;
@@ -303,6 +309,24 @@ Status write_encoded_png(const std::string& path, const cv::Mat& image) {
 
 }  // namespace
 
+Result<std::vector<Pose2>> corrected_on_route(const std::string& path, const std::vector<Pose2>& route,
+                                              const std::vector<double>& times) {
+  Result<std::vector<tools::TimedPose>> tum = tools::load_tum(path);
+  if (!tum) return tum.error();
+  std::vector<Pose2> estimate, truth;
+  std::size_t frame = 0;
+  const double half_frame = times.size() > 1 ? 0.5 * (times[1] - times[0]) : 0.05;
+  for (const tools::TimedPose& p : *tum) {
+    while (frame < times.size() && times[frame] < p.t - half_frame) ++frame;
+    if (frame >= times.size() || frame >= route.size()) break;
+    if (std::abs(times[frame] - p.t) > half_frame) continue;
+    estimate.push_back(p.pose);
+    truth.push_back(route[frame]);
+  }
+  if (estimate.size() < 2) return error(path + ": fewer than 2 poses at the drive's frame times");
+  return tools::transformed(estimate, tools::align_se2(estimate, truth));
+}
+
 Status write_svg(const std::string& path, const FigureContent& c) {
   const Layout layout(c);
   tools::OutputFile file;
@@ -310,9 +334,10 @@ Status write_svg(const std::string& path, const FigureContent& c) {
   std::FILE* f = file.get();
   svg_header(f, layout, c);
   svg_route(f, layout, *c.route);
+  if (c.corrected != nullptr) svg_route(f, layout, *c.corrected, kCorrected);
   svg_markings_and_loops(f, layout, c);
   svg_scale_bar(f, layout);
-  svg_legend(f, layout, *c.markings);
+  svg_legend(f, layout, *c.markings, c.corrected != nullptr);
   std::fprintf(f, "</svg>\n");
   return file.close();
 }
@@ -325,8 +350,14 @@ Status write_png(const std::string& path, const FigureContent& c) {
   cv::putText(image, c.subtitle, {Layout::kMargin, 50}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1,
               cv::LINE_AA);
   png_route_markings_and_loops(image, layout, c);
+  if (c.corrected != nullptr) {
+    std::vector<cv::Point> line;
+    for (const Pose2& p : *c.corrected)
+      line.emplace_back(int(std::lround(layout.px(p.x))), int(std::lround(layout.py(p.y))));
+    cv::polylines(image, line, false, bgr(kCorrected), 1, cv::LINE_AA);
+  }
   png_scale_bar(image, layout);
-  png_legend(image, layout, *c.markings);
+  png_legend(image, layout, *c.markings, c.corrected != nullptr);
   return write_encoded_png(path, image);
 }
 

@@ -20,7 +20,17 @@ struct FigureContent {
   const std::vector<LoopOutcome>* loops = nullptr;
   std::string title;
   std::string subtitle;
+  // A corrected trajectory (markloop-posegraph's after.tum) already aligned
+  // to the truth; drawn when set.
+  const std::vector<Pose2>* corrected = nullptr;
 };
+
+// A TUM trajectory (time in the drive's clock) as a pose per frame of the
+// route, each at the frame's time in `times` (nearest within half a frame),
+// rigidly aligned to the route. "FILE:LINE: what" on a bad file; an error
+// when it shares fewer than 2 frames with the route.
+Result<std::vector<Pose2>> corrected_on_route(const std::string& path, const std::vector<Pose2>& route,
+                                              const std::vector<double>& times);
 
 // Each returns an error ("PATH: why") when the file cannot be written.
 Status write_svg(const std::string& path, const FigureContent& content);

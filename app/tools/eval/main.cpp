@@ -53,6 +53,8 @@ options:
   --svg FILE         picture of the run; default DIR/loops.svg
   --png FILE         the same picture as PNG; default DIR/loops.png
   --json FILE        every figure as JSON, for scripts
+  --corrected FILE   a corrected trajectory (TUM, markloop-posegraph's
+                     after.tum), drawn in the picture aligned to the truth
   --help             this text
 
 figures:
@@ -99,7 +101,7 @@ Exit status: 0 on success; 1 when an output cannot be written (PATH: why);
 )";
 
 struct Options {
-  std::string dir, can, detections, svg, png, json;
+  std::string dir, can, detections, svg, png, json, corrected;
   bool detections_given = false;
   std::string landmarks;
   bool landmarks_given = false;
@@ -115,6 +117,7 @@ constexpr OptionSpec kOptions[] = {
     {"--svg", "FILE", "picture of the run"},
     {"--png", "FILE", "the same picture as PNG"},
     {"--json", "FILE", "every figure as JSON, for scripts"},
+    {"--corrected", "FILE", "a corrected trajectory (TUM) to draw"},
 };
 
 // One option as given, checked where it stands on the command line.
@@ -126,6 +129,7 @@ void apply_option(std::string_view name, std::string_view value, Options& o) {
   if (name == "--svg") o.svg = value;
   if (name == "--png") o.png = value;
   if (name == "--json") o.json = value;
+  if (name == "--corrected") o.corrected = value;
 }
 
 // The outputs and inputs not given, in DIR.
@@ -562,6 +566,11 @@ void draw_pictures(const Run& r) {
   figure.route = &r.route;
   figure.markings = &r.world;
   figure.loops = &r.loops.outcomes;
+  std::vector<Pose2> corrected;
+  if (!r.o.corrected.empty()) {
+    corrected = or_fail(corrected_on_route(r.o.corrected, r.route, r.times));
+    figure.corrected = &corrected;
+  }
   char text[256];
   std::snprintf(text, sizeof text, "markloop: %zu loop detections, %zu wrong (tolerance %g m)",
                 r.loops.outcomes.size(), r.loops.evaluation.wrong, r.o.tolerance);
