@@ -20,6 +20,7 @@
 #include "app/common/cli.hpp"
 #include "app/common/memory_check.hpp"
 #include "app/common/units.hpp"
+#include "app/ecu/config.hpp"
 #include "app/tools/common/tool_files.hpp"
 #include "app/tools/replay/compat.hpp"
 #include "app/tools/replay/paper_format.hpp"
@@ -77,6 +78,10 @@ engine (each value must lie in the range given):
                          default 1048576
   --landmark-capacity N  database size in landmarks, 16 to 1073741824 (2^30);
                          default 262144
+
+  --ecu                  start from the engine settings the ECU ships with
+                         (app/ecu/config.hpp: place matching, the odometry
+                         prior, ...); the options above change them
 
   --compat               run the authors' batch program instead: frame gap
                          T = 30, match gap 100 T, distance tolerance 2 m, same
@@ -139,6 +144,7 @@ constexpr OptionSpec kOptions[] = {
     {"--max-frame-distance", "M", "largest distance between a loop's two frames"},
     {"--sequence-capacity", "N", "database size in sequences"},
     {"--landmark-capacity", "N", "database size in landmarks"},
+    {"--ecu", "", "start from the engine settings of the ECU"},
     {"--compat", "", "run the authors' batch program instead"},
     {"--out", "FILE", "matches in the authors' image_matches.txt format"},
     {"--jsonl", "FILE", "one JSON record per match"},
@@ -287,6 +293,9 @@ void apply_option(std::string_view name, const std::string& value, Options& o) {
 Options parse(int argc, char** argv) {
   const ParsedArgs args = parse_args_or_fail(argc, argv, kOptions);
   Options o;
+  // The ECU's engine settings are the base the other options change, wherever --ecu stands.
+  for (const ParsedArgs::Given& given : args.given())
+    if (given.name == "--ecu") o.engine = ecu::ecu_engine_defaults();
   // The options before --help are checked as given, as without it.
   for (const ParsedArgs::Given& given : args.given()) apply_option(given.name, std::string(given.value), o);
   if (args.help()) {
