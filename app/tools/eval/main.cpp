@@ -17,6 +17,8 @@
 #include "app/tools/eval/inputs.hpp"
 #include "app/tools/eval/scoring.hpp"
 #include "app/tools/replay/paper_format.hpp"
+#include "app/tools/replay/revisit_events.hpp"
+#include "app/tools/replay/revisit_report.hpp"
 #include "app/tools/replay/truth_judge.hpp"
 
 namespace {
@@ -59,6 +61,14 @@ figures:
   loop precision     correct / judged LoopDetection messages
   revisit recall     revisited 100 m stretches of the route (places driven
                      again at least 100 m later) with a correct detection
+  revisit events     frames within 6 m of a frame at least 30 s older, joined
+                     while the gaps are under 3 s: per event its length, kind
+                     (same direction, opposite direction, crossing/turn-in)
+                     and how far into it the car had driven when the first
+                     correct detection with its query frame in it reached
+                     the bus, or never; closed / events by kind and length
+                     (under 50 m, 50 m or more), median and p90 of that
+                     distance
   pose error         PoseDx/PoseDy/PoseDyaw of correct detections against the
                      true pose of the car at the query in the car's frame at
                      the match
@@ -241,6 +251,8 @@ std::string class_name(Label label) {
 
 // The table lists this many landmarks or passes of each kind; --json all.
 constexpr std::size_t kListed = 20;
+// ... and this many revisit events.
+constexpr std::size_t kListedRevisits = 40;
 
 // "another class" or "on no marking", for a landmark the score lists.
 const char* misplacement(const LandmarkScore& l, const MisplacedLandmark& m) {
@@ -324,6 +336,8 @@ struct Run {
   std::vector<WorldMarking> world;
   EcuCanLog log;
   LoopScore loops;
+  std::vector<replay::RevisitEvent> revisits;  // in the truth, closed by the ECU's detections
+  replay::RevisitTally revisit_tally;
   std::vector<VisibleMarking> visible;
   std::vector<DetectionRecord> detections;
   std::string marking_note;  // why the markings were not judged
@@ -390,6 +404,9 @@ void load_ecu_outputs(Run& r) {
 void score(Run& r) {
   const replay::TruthJudge judge(r.route, r.o.tolerance, kRevisitSeparation_m);
   r.loops = score_loops(judge, r.times, r.log.loops);
+  r.revisits = replay::find_revisit_events(r.route, r.times);
+  replay::close_revisit_events(r.revisits, r.route, closing_detections(r.loops, r.log.loops, r.times));
+  r.revisit_tally = replay::tally_revisit_events(r.revisits);
   if (r.have_markings) r.markings = score_markings(r.visible, r.detections);
   if (r.have_landmarks) r.placed = score_landmarks(r.world, r.route, r.landmarks);
   if (r.have_passes)
@@ -525,6 +542,8 @@ void print_table(const Run& r) {
   print_can(r);
   print_status(r.log);
   print_loops(r);
+  replay::print_revisit_tally(stdout, r.revisit_tally);
+  replay::print_revisit_events(stdout, r.revisits, kListedRevisits);
   print_markings(r);
   if (r.have_landmarks)
     print_landmarks(r.placed, r.landmarks, r.world);
@@ -730,6 +749,8 @@ Status write_json(const std::string& path, const Run& r) {
                r.o.tolerance);
   json_can(f, r.log);
   json_loops(f, r.loops);
+  std::fputc(',', f);
+  replay::json_revisits(f, r.revisits, r.revisit_tally);
   if (r.have_markings) json_markings(f, r.markings);
   if (r.have_landmarks) json_landmarks(f, r.placed, r.landmarks, r.world);
   if (r.have_passes) json_passes(f, r.passes);
