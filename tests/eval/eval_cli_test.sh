@@ -52,6 +52,18 @@ if command -v python3 >/dev/null; then
     { echo "FAIL figures.json is not JSON"; failures=$((failures + 1)); }
 fi
 
+# --summary: the same drive twice, summed.
+check "--summary" 0 "^markloop-eval --summary: 2 drives, 1.60 km driven" -- \
+  "$eval_tool" --summary "$run/figures.json" "$run/figures.json" --json "$work/summary.json"
+for pattern in "same direction +0 / 0 \(-\) +2 / 2 \(100.0 %\)" "closed at, median / p90 \(50 m or more\) +176.0 / 176.0 m \(2 closed\)" \
+    "wrong LoopDetections +2" "relative pose error, mean +0.400 m \(2 correct" "wrong loops: $run/figures.json \(1\)"; do
+  grep -qE -- "$pattern" "$work/out" || { echo "FAIL summary lacks '$pattern'"; failures=$((failures + 1)); }
+done
+grep -q '"drives":2,' "$work/summary.json" || { echo "FAIL summary json"; failures=$((failures + 1)); }
+check "--summary without files" 2 "^markloop-eval: --summary needs eval.json files" -- "$eval_tool" --summary
+check "--summary with --can" 2 "^markloop-eval: --can does not apply with --summary" -- "$eval_tool" --summary x --can y
+check "--summary of a frames.csv" 2 "frames.csv: byte 1: " -- "$eval_tool" --summary "$run/frames.csv"
+
 check "tolerance 2 m" 0 "correct / wrong +0 / 2" -- "$eval_tool" "$run" --tolerance 2 --svg "$work/t.svg" --png "$work/t.png"
 
 run=$(fresh nodet) && rm "$run/ecu-detections.csv"

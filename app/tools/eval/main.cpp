@@ -13,6 +13,7 @@
 #include "app/common/cli.hpp"
 #include "app/tools/common/tool_files.hpp"
 #include "app/tools/eval/can_log.hpp"
+#include "app/tools/eval/drive_summary.hpp"
 #include "app/tools/eval/figure.hpp"
 #include "app/tools/eval/inputs.hpp"
 #include "app/tools/eval/scoring.hpp"
@@ -32,6 +33,7 @@ using namespace markloop::cli;
 constexpr double kRevisitSeparation_m = 100.0;
 
 constexpr const char* kUsage = R"(usage: markloop-eval DIR [options]
+       markloop-eval --summary EVAL_JSON... [--json FILE]
 
 Judges what the markloop ECU sent on CAN for a simulated drive against the
 simulator's ground truth, prints a table of figures and draws the run.
@@ -55,6 +57,13 @@ options:
   --svg FILE         picture of the run; default DIR/loops.svg
   --png FILE         the same picture as PNG; default DIR/loops.png
   --json FILE        every figure as JSON, for scripts
+  --summary          read the eval.json files given (of this markloop-eval,
+                     one per drive) instead of a run and print their sum:
+                     drives, km, revisit events closed / total by kind and
+                     length, median and p90 closure distance, wrong loop
+                     detections (and the drives that had them), relative
+                     pose error mean over all detections; --json FILE writes
+                     it as JSON (tests/loops/revisit-table.sh runs the drives)
   --help             this text
 
 figures:
@@ -110,6 +119,8 @@ Exit status: 0 on success; 1 when an output cannot be written (PATH: why);
 
 struct Options {
   std::string dir, can, detections, svg, png, json;
+  bool summary = false;
+  std::vector<std::string> summary_files;
   bool detections_given = false;
   std::string landmarks;
   bool landmarks_given = false;
@@ -125,6 +136,7 @@ constexpr OptionSpec kOptions[] = {
     {"--svg", "FILE", "picture of the run"},
     {"--png", "FILE", "the same picture as PNG"},
     {"--json", "FILE", "every figure as JSON, for scripts"},
+    {"--summary", "", "sum the eval.json files given"},
 };
 
 // One option as given, checked where it stands on the command line.
@@ -136,6 +148,19 @@ void apply_option(std::string_view name, std::string_view value, Options& o) {
   if (name == "--svg") o.svg = value;
   if (name == "--png") o.png = value;
   if (name == "--json") o.json = value;
+  if (name == "--summary") o.summary = true;
+}
+
+// --summary takes eval.json files, and of the options only --json.
+void check_summary(const ParsedArgs& args, Options& o) {
+  for (const ParsedArgs::Given& given : args.given())
+    if (given.name != "--summary" && given.name != "--json")
+      fail(std::string(given.name) + " does not apply with --summary (only --json does)");
+  for (const std::string_view file : args.positional()) o.summary_files.emplace_back(file);
+  if (o.summary_files.empty()) fail("--summary needs eval.json files (see --help)");
+  for (const std::string& file : o.summary_files)
+    if (!o.json.empty() && platform::overwrites(o.json, file))
+      fail(o.json + ": is the input " + file + ": an output may not overwrite it");
 }
 
 // The outputs and inputs not given, in DIR.
@@ -156,6 +181,10 @@ Options parse(int argc, char** argv) {
   const auto& dirs = args.positional();
   // A lone "-" is no directory: standard input is not read.
   if (std::find(dirs.begin(), dirs.end(), "-") != dirs.end()) fail("unknown option - (see --help)");
+  if (o.summary && !args.help()) {
+    check_summary(args, o);
+    return o;
+  }
   if (dirs.size() > 1)
     fail("more than one DIR given: '" + std::string(dirs[0]) + "' and '" + std::string(dirs[1]) + "'");
   if (args.help()) {
@@ -760,10 +789,26 @@ Status write_json(const std::string& path, const Run& r) {
 
 }  // namespace
 
+// --summary: the eval.json files summed; exits.
+[[noreturn]] void run_summary(const Options& o) {
+  std::vector<DriveFigures> drives;
+  for (const std::string& file : o.summary_files) drives.push_back(or_fail(load_drive_figures(file)));
+  const DrivesSummary summary = summarise_drives(drives);
+  print_drives_summary(stdout, summary);
+  if (!o.json.empty()) {
+    if (const Status written = write_drives_summary_json(o.json, summary); !written)
+      tools::fail_run(written.message());
+    std::printf("figures: %s\n", o.json.c_str());
+  }
+  if (const Status flushed = tools::flush_stdout(); !flushed) tools::fail_run(flushed.message());
+  std::exit(kExitOk);
+}
+
 int main(int argc, char** argv) {
   program_name() = "markloop-eval";
   Run r;
   r.o = parse(argc, argv);
+  if (r.o.summary) run_summary(r.o);
   check_outputs(r.o);
   load_route(r);
   r.world = or_fail(load_world_markings(std::filesystem::path(r.o.dir) / "markings.csv"));
