@@ -90,6 +90,10 @@ check "simulated drive" 0 "1.2 km city block" -- "$sim" drive --scenario loop --
 check "replay of the drive" 0 "precision 100.0%" -- "$replay" --markings "$work/drive/markings.txt" \
   --poses "$work/drive/poses.txt" --truth "$work/drive/frames.csv" \
   --out "$work/matches.txt" --jsonl "$work/matches.jsonl"
+# Two laps of the block: lap 2 is one revisit event the same way, closed.
+grep -qE "same direction +0 / 0 \(-\) +1 / 1 \(100.0 %\)" "$work/out" &&
+  grep -qE "event at frame [0-9]+ \(to [0-9]+\): [0-9.]+ m, same direction, closed at [0-9.]+ m" "$work/out" ||
+  { echo "FAIL replay lacks the revisit events"; failures=$((failures + 1)); }
 lines=$(wc -l <"$work/matches.txt") records=$(wc -l <"$work/matches.jsonl")
 if [ "$records" -lt 10 ] || [ "$lines" != $((2 * records)) ]; then
   echo "FAIL outputs: $lines lines in matches.txt for $records JSON records"; failures=$((failures + 1))

@@ -29,7 +29,10 @@ for pattern in "correct / wrong +1 / 1" "revisited 100 m stretches detected +1 o
     "classification accuracy +66.7 %" "longest loop time \(any cycle\) +12.50 ms" \
     "^Landmarks \(the ECU's" "on a marking of their label +50.0 % \(1\)" "on no marking +1" \
     "on no marking: landmark 2 \(ped\), frames 15\.\.19, at \(20\.0, 20\.0\) m; nearest marking 0 \(stop\), 34\.48 m" \
-    "^Markings driven past" "passes +0 \(and 0 at the drive's start or end"; do
+    "^Markings driven past" "passes +0 \(and 0 at the drive's start or end" \
+    "^Revisit events \(frames within 6 m of a frame at least 30 s older" \
+    "same direction +0 / 0 \(-\) +1 / 1 \(100.0 %\)" "closed at, median / p90 \(50 m or more\) +176.0 / 176.0 m" \
+    "event at frame 394 \(to 799\): 405.0 m, same direction, closed at 176.0 m \(query frame 553\)"; do
   grep -qE -- "$pattern" "$work/run.txt" || { echo "FAIL table lacks '$pattern'"; failures=$((failures + 1)); }
 done
 for f in loops.svg loops.png figures.json; do
@@ -40,12 +43,26 @@ grep -q '"landmarks":{"count":2,"without_pose":0,"right_label":1,"wrong_label":0
   { echo "FAIL json lacks the landmarks"; failures=$((failures + 1)); }
 grep -q '"misplaced":\[{"landmark":2,"label":"ped","frames":\[15,19\],"at":\[20.000,20.000\],"judged":"on no marking","nearest":{"id":0,"class":"stop","distance_m":34.482}}\]' "$run/figures.json" ||
   { echo "FAIL json lacks the misplaced landmark"; failures=$((failures + 1)); }
+grep -q '"revisits":{"radius_m":6,"min_age_s":30,"max_gap_s":3,"longer_m":50,"events":\[{"first_frame":394,"last_frame":799,"start_m":394.000,"length_m":405.000,"kind":"same","closed_at_m":176.000,"closing_query_frame":553}\]' "$run/figures.json" ||
+  { echo "FAIL json lacks the revisit events"; failures=$((failures + 1)); }
 grep -q '"passes":{"count":0,"cut_by_drive_ends":0,"named_right":0' "$run/figures.json" ||
   { echo "FAIL json lacks the passes"; failures=$((failures + 1)); }
 if command -v python3 >/dev/null; then
   python3 -c 'import json,sys; json.load(open(sys.argv[1]))' "$run/figures.json" ||
     { echo "FAIL figures.json is not JSON"; failures=$((failures + 1)); }
 fi
+
+# --summary: the same drive twice, summed.
+check "--summary" 0 "^markloop-eval --summary: 2 drives, 1.60 km driven" -- \
+  "$eval_tool" --summary "$run/figures.json" "$run/figures.json" --json "$work/summary.json"
+for pattern in "same direction +0 / 0 \(-\) +2 / 2 \(100.0 %\)" "closed at, median / p90 \(50 m or more\) +176.0 / 176.0 m \(2 closed\)" \
+    "wrong LoopDetections +2" "relative pose error, mean +0.400 m \(2 correct" "wrong loops: $run/figures.json \(1\)"; do
+  grep -qE -- "$pattern" "$work/out" || { echo "FAIL summary lacks '$pattern'"; failures=$((failures + 1)); }
+done
+grep -q '"drives":2,' "$work/summary.json" || { echo "FAIL summary json"; failures=$((failures + 1)); }
+check "--summary without files" 2 "^markloop-eval: --summary needs eval.json files" -- "$eval_tool" --summary
+check "--summary with --can" 2 "^markloop-eval: --can does not apply with --summary" -- "$eval_tool" --summary x --can y
+check "--summary of a frames.csv" 2 "frames.csv: byte 1: " -- "$eval_tool" --summary "$run/frames.csv"
 
 check "tolerance 2 m" 0 "correct / wrong +0 / 2" -- "$eval_tool" "$run" --tolerance 2 --svg "$work/t.svg" --png "$work/t.png"
 

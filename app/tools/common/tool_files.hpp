@@ -120,6 +120,9 @@ inline Status flush_stdout() {
 // A failure while running, such as an output that could not be written:
 // "PROGRAM: message" and exit status 1.
 [[noreturn]] inline void fail_run(const std::string& message) {
+  // What was printed so far first, so that the message starts its own line
+  // when both go to one file.
+  std::fflush(stdout);
   std::fprintf(stderr, "%s: %s\n", cli::program_name(), message.c_str());
   std::exit(1);
 }

@@ -13,10 +13,13 @@
 #include "app/common/cli.hpp"
 #include "app/tools/common/tool_files.hpp"
 #include "app/tools/eval/can_log.hpp"
+#include "app/tools/eval/drive_summary.hpp"
 #include "app/tools/eval/figure.hpp"
 #include "app/tools/eval/inputs.hpp"
 #include "app/tools/eval/scoring.hpp"
 #include "app/tools/replay/paper_format.hpp"
+#include "app/tools/replay/revisit_events.hpp"
+#include "app/tools/replay/revisit_report.hpp"
 #include "app/tools/replay/truth_judge.hpp"
 
 namespace {
@@ -30,6 +33,7 @@ using namespace markloop::cli;
 constexpr double kRevisitSeparation_m = 100.0;
 
 constexpr const char* kUsage = R"(usage: markloop-eval DIR [options]
+       markloop-eval --summary EVAL_JSON... [--json FILE]
 
 Judges what the markloop ECU sent on CAN for a simulated drive against the
 simulator's ground truth, prints a table of figures and draws the run.
@@ -55,12 +59,27 @@ options:
   --json FILE        every figure as JSON, for scripts
   --corrected FILE   a corrected trajectory (TUM, markloop-posegraph's
                      after.tum), drawn in the picture aligned to the truth
+  --summary          read the eval.json files given (of this markloop-eval,
+                     one per drive) instead of a run and print their sum:
+                     drives, km, revisit events closed / total by kind and
+                     length, median and p90 closure distance, wrong loop
+                     detections (and the drives that had them), relative
+                     pose error mean over all detections; --json FILE writes
+                     it as JSON (tests/loops/revisit-table.sh runs the drives)
   --help             this text
 
 figures:
   loop precision     correct / judged LoopDetection messages
   revisit recall     revisited 100 m stretches of the route (places driven
                      again at least 100 m later) with a correct detection
+  revisit events     frames within 6 m of a frame at least 30 s older, joined
+                     while the gaps are under 3 s: per event its length, kind
+                     (same direction, opposite direction, crossing/turn-in)
+                     and how far into it the car had driven when the first
+                     correct detection with its query frame in it reached
+                     the bus, or never; closed / events by kind and length
+                     (under 50 m, 50 m or more), median and p90 of that
+                     distance
   pose error         PoseDx/PoseDy/PoseDyaw of correct detections against the
                      true pose of the car at the query in the car's frame at
                      the match
@@ -102,6 +121,8 @@ Exit status: 0 on success; 1 when an output cannot be written (PATH: why);
 
 struct Options {
   std::string dir, can, detections, svg, png, json, corrected;
+  bool summary = false;
+  std::vector<std::string> summary_files;
   bool detections_given = false;
   std::string landmarks;
   bool landmarks_given = false;
@@ -118,6 +139,7 @@ constexpr OptionSpec kOptions[] = {
     {"--png", "FILE", "the same picture as PNG"},
     {"--json", "FILE", "every figure as JSON, for scripts"},
     {"--corrected", "FILE", "a corrected trajectory (TUM) to draw"},
+    {"--summary", "", "sum the eval.json files given"},
 };
 
 // One option as given, checked where it stands on the command line.
@@ -130,6 +152,19 @@ void apply_option(std::string_view name, std::string_view value, Options& o) {
   if (name == "--png") o.png = value;
   if (name == "--json") o.json = value;
   if (name == "--corrected") o.corrected = value;
+  if (name == "--summary") o.summary = true;
+}
+
+// --summary takes eval.json files, and of the options only --json.
+void check_summary(const ParsedArgs& args, Options& o) {
+  for (const ParsedArgs::Given& given : args.given())
+    if (given.name != "--summary" && given.name != "--json")
+      fail(std::string(given.name) + " does not apply with --summary (only --json does)");
+  for (const std::string_view file : args.positional()) o.summary_files.emplace_back(file);
+  if (o.summary_files.empty()) fail("--summary needs eval.json files (see --help)");
+  for (const std::string& file : o.summary_files)
+    if (!o.json.empty() && platform::overwrites(o.json, file))
+      fail(o.json + ": is the input " + file + ": an output may not overwrite it");
 }
 
 // The outputs and inputs not given, in DIR.
@@ -150,6 +185,10 @@ Options parse(int argc, char** argv) {
   const auto& dirs = args.positional();
   // A lone "-" is no directory: standard input is not read.
   if (std::find(dirs.begin(), dirs.end(), "-") != dirs.end()) fail("unknown option - (see --help)");
+  if (o.summary && !args.help()) {
+    check_summary(args, o);
+    return o;
+  }
   if (dirs.size() > 1)
     fail("more than one DIR given: '" + std::string(dirs[0]) + "' and '" + std::string(dirs[1]) + "'");
   if (args.help()) {
@@ -245,6 +284,8 @@ std::string class_name(Label label) {
 
 // The table lists this many landmarks or passes of each kind; --json all.
 constexpr std::size_t kListed = 20;
+// ... and this many revisit events.
+constexpr std::size_t kListedRevisits = 40;
 
 // "another class" or "on no marking", for a landmark the score lists.
 const char* misplacement(const LandmarkScore& l, const MisplacedLandmark& m) {
@@ -328,6 +369,8 @@ struct Run {
   std::vector<WorldMarking> world;
   EcuCanLog log;
   LoopScore loops;
+  std::vector<replay::RevisitEvent> revisits;  // in the truth, closed by the ECU's detections
+  replay::RevisitTally revisit_tally;
   std::vector<VisibleMarking> visible;
   std::vector<DetectionRecord> detections;
   std::string marking_note;  // why the markings were not judged
@@ -394,6 +437,9 @@ void load_ecu_outputs(Run& r) {
 void score(Run& r) {
   const replay::TruthJudge judge(r.route, r.o.tolerance, kRevisitSeparation_m);
   r.loops = score_loops(judge, r.times, r.log.loops);
+  r.revisits = replay::find_revisit_events(r.route, r.times);
+  replay::close_revisit_events(r.revisits, r.route, closing_detections(r.loops, r.log.loops, r.times));
+  r.revisit_tally = replay::tally_revisit_events(r.revisits);
   if (r.have_markings) r.markings = score_markings(r.visible, r.detections);
   if (r.have_landmarks) r.placed = score_landmarks(r.world, r.route, r.landmarks);
   if (r.have_passes)
@@ -529,6 +575,8 @@ void print_table(const Run& r) {
   print_can(r);
   print_status(r.log);
   print_loops(r);
+  replay::print_revisit_tally(stdout, r.revisit_tally);
+  replay::print_revisit_events(stdout, r.revisits, kListedRevisits);
   print_markings(r);
   if (r.have_landmarks)
     print_landmarks(r.placed, r.landmarks, r.world);
@@ -739,6 +787,8 @@ Status write_json(const std::string& path, const Run& r) {
                r.o.tolerance);
   json_can(f, r.log);
   json_loops(f, r.loops);
+  std::fputc(',', f);
+  replay::json_revisits(f, r.revisits, r.revisit_tally);
   if (r.have_markings) json_markings(f, r.markings);
   if (r.have_landmarks) json_landmarks(f, r.placed, r.landmarks, r.world);
   if (r.have_passes) json_passes(f, r.passes);
@@ -748,10 +798,26 @@ Status write_json(const std::string& path, const Run& r) {
 
 }  // namespace
 
+// --summary: the eval.json files summed; exits.
+[[noreturn]] void run_summary(const Options& o) {
+  std::vector<DriveFigures> drives;
+  for (const std::string& file : o.summary_files) drives.push_back(or_fail(load_drive_figures(file)));
+  const DrivesSummary summary = summarise_drives(drives);
+  print_drives_summary(stdout, summary);
+  if (!o.json.empty()) {
+    if (const Status written = write_drives_summary_json(o.json, summary); !written)
+      tools::fail_run(written.message());
+    std::printf("figures: %s\n", o.json.c_str());
+  }
+  if (const Status flushed = tools::flush_stdout(); !flushed) tools::fail_run(flushed.message());
+  std::exit(kExitOk);
+}
+
 int main(int argc, char** argv) {
   program_name() = "markloop-eval";
   Run r;
   r.o = parse(argc, argv);
+  if (r.o.summary) run_summary(r.o);
   check_outputs(r.o);
   load_route(r);
   r.world = or_fail(load_world_markings(std::filesystem::path(r.o.dir) / "markings.csv"));

@@ -37,6 +37,21 @@ Spread spread_of(std::vector<double> values) {
   return s;
 }
 
+std::vector<replay::ClosingDetection> closing_detections(const LoopScore& score,
+                                                         const std::vector<LoopReport>& loops,
+                                                         const std::vector<double>& frame_times) {
+  std::vector<replay::ClosingDetection> closing;
+  for (std::size_t i = 0; i < loops.size() && i < score.outcomes.size(); ++i) {
+    const double stamp_s = static_cast<double>(loops[i].stamp_ns) * 1e-9;
+    const auto after = std::upper_bound(frame_times.begin(), frame_times.end(), stamp_s + 1e-9);
+    const std::size_t bus_frame =
+        after == frame_times.begin() ? 0 : static_cast<std::size_t>(after - frame_times.begin()) - 1;
+    const LoopOutcome& o = score.outcomes[i];
+    closing.push_back({o.pair.query, bus_frame, o.verdict == Verdict::Correct});
+  }
+  return closing;
+}
+
 LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>& frame_times,
                       const std::vector<LoopReport>& loops) {
   LoopScore score;

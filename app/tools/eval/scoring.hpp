@@ -13,6 +13,7 @@
 #include "app/perception/marking_classes.hpp"
 #include "app/tools/eval/can_log.hpp"
 #include "app/tools/eval/inputs.hpp"
+#include "app/tools/replay/revisit_events.hpp"
 #include "app/tools/replay/truth_judge.hpp"
 
 namespace markloop::eval {
@@ -57,6 +58,13 @@ struct LoopScore {
 // `frame_times`: frames.csv's t per frame (same length as the judge's truth).
 LoopScore score_loops(const replay::TruthJudge& judge, const std::vector<double>& frame_times,
                       const std::vector<LoopReport>& loops);
+
+// Each detection of `score` (scored from `loops`) as it closes revisit
+// events: its query frame, the latest frame at or before its CAN stamp (the
+// first when it went out before any), and whether it is correct.
+std::vector<replay::ClosingDetection> closing_detections(const LoopScore& score,
+                                                         const std::vector<LoopReport>& loops,
+                                                         const std::vector<double>& frame_times);
 
 inline constexpr double kMinIntersectionOverUnion = 0.3;
 

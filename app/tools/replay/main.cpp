@@ -25,6 +25,8 @@
 #include "app/tools/replay/compat.hpp"
 #include "app/tools/replay/paper_format.hpp"
 #include "app/tools/replay/replay.hpp"
+#include "app/tools/replay/revisit_events.hpp"
+#include "app/tools/replay/revisit_report.hpp"
 
 namespace {
 
@@ -92,8 +94,11 @@ output:
   --out FILE             matches in the authors' image_matches.txt format
   --jsonl FILE           one JSON record per match, with poses and residuals
   --truth FILE           ground truth (simulator frames.csv or KITTI poses):
-                         report correct and wrong matches, revisit recall and
-                         relative pose error
+                         report correct and wrong matches, revisit recall,
+                         relative pose error and the revisit events (6 m,
+                         30 s, gaps under 3 s: docs/evaluation.md), each
+                         closed at the frame the engine emitted its first
+                         correct match (times: frames.csv's, else --fps)
   --truth-radius M       a match is correct when the two frames' true
                          positions are this close, 0.01 to 10000 m; default 10
   --sweep A..B           run k = A..B (2 <= A <= B <= 10) and print a table
@@ -459,6 +464,7 @@ struct Replay {
   std::vector<MarkingRecord> records;
   std::vector<Pose2> poses;
   std::unique_ptr<TruthJudge> judge;
+  std::vector<double> truth_times;  // frames.csv's, or frame / fps for KITTI poses
   LabelTable labels;
 };
 
@@ -481,6 +487,9 @@ void load_inputs(Replay& r) {
   if (o.truth.empty()) return;
   TruePoses truth = or_fail(load_truth(o.truth));
   check_covers(o.truth, truth.poses.size(), "true pose", o, r.records);
+  r.truth_times = std::move(truth.times);
+  for (std::size_t f = r.truth_times.size(); f < truth.poses.size(); ++f)
+    r.truth_times.push_back(static_cast<double>(f) / o.fps);
   r.judge =
       std::make_unique<TruthJudge>(std::move(truth.poses), o.truth_radius, o.engine.match.min_separation_m);
 }
@@ -549,6 +558,25 @@ void print_loop(const Replay& r, const MatchEvent& e) {
   std::printf("\n");
 }
 
+// The table lists this many revisit events.
+constexpr std::size_t kListedRevisits = 20;
+
+// The revisit events of the truth, each closed by the first correct match
+// with its query frame in it, counted at the frame the engine emitted it.
+void print_revisits(const Replay& r, const ReplayResult& result) {
+  const TruthJudge& judge = *r.judge;
+  std::vector<ClosingDetection> closing;
+  for (std::size_t i = 0; i < result.matches.size(); ++i) {
+    const FramePair pair{result.matches[i].query_frame(), result.matches[i].match_frame()};
+    const bool correct = judge.covers(pair.query) && judge.covers(pair.match) && judge.correct(pair);
+    closing.push_back({pair.query, result.emitted_at[i], correct});
+  }
+  std::vector<RevisitEvent> events = find_revisit_events(judge.truth(), r.truth_times);
+  close_revisit_events(events, judge.truth(), closing);
+  print_revisit_tally(stdout, tally_revisit_events(events));
+  print_revisit_events(stdout, events, kListedRevisits);
+}
+
 // One engine run with sequences of `k`; with `write`, its outputs and report.
 std::vector<FramePair> run_engine_once(Replay& r, unsigned k, bool write) {
   EngineConfig config = r.o.engine;
@@ -561,7 +589,9 @@ std::vector<FramePair> run_engine_once(Replay& r, unsigned k, bool write) {
   if (!r.o.quiet)
     for (const MatchEvent& e : result.matches) print_loop(r, e);
   std::printf("matches: %zu\n", result.matches.size());
-  if (r.judge) print_evaluation(r.judge->evaluate(pairs, relative_poses(result.matches)));
+  if (!r.judge) return pairs;
+  print_evaluation(r.judge->evaluate(pairs, relative_poses(result.matches)));
+  print_revisits(r, result);
   return pairs;
 }
 
@@ -610,7 +640,7 @@ void run_sweep(Replay& r) {
 }
 
 int replay_main(int argc, char** argv) {
-  Replay r{parse(argc, argv), {}, {}, {}, {}};
+  Replay r{parse(argc, argv), {}, {}, {}, {}, {}};
   check_outputs(r.o);
   load_inputs(r);
   if (r.o.sweep_first == 0)

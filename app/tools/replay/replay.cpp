@@ -8,13 +8,18 @@ namespace markloop::replay {
 
 namespace {
 
+// Collects the matches and the frame being processed when each came.
 class CollectingSink final : public MatchSink {
  public:
-  explicit CollectingSink(std::vector<MatchEvent>& events) : events_(events) {}
-  void on_match(const MatchEvent& event) override { events_.push_back(event); }
+  explicit CollectingSink(ReplayResult& result) : result_(result) {}
+  void on_match(const MatchEvent& event) override {
+    result_.matches.push_back(event);
+    result_.emitted_at.push_back(frame);
+  }
+  FrameIndex frame = 0;
 
  private:
-  std::vector<MatchEvent>& events_;
+  ReplayResult& result_;
 };
 
 // The first frame after `seen` and before `frame_count` at which a track
@@ -80,7 +85,7 @@ ReplayResult run_engine(const std::vector<MarkingRecord>& records, const std::ve
   ReplayResult result;
   result.frames = frames;
   auto engine = std::make_unique<SequenceEngine>(config);
-  CollectingSink sink(result.matches);
+  CollectingSink sink(result);
   std::vector<Observation> observations;
   std::size_t next = 0;
   for (const std::size_t f :
@@ -90,6 +95,7 @@ ReplayResult run_engine(const std::vector<MarkingRecord>& records, const std::ve
       observations.push_back(to_ground(*ordered[next], labels.intern(ordered[next]->label)));
     FrameInput input{static_cast<FrameIndex>(f), static_cast<double>(f) / fps, f < poses.size(),
                      f < poses.size() ? poses[f] : Pose2{}};
+    sink.frame = input.frame;
     engine->process_frame(input, observations, sink);
   }
   engine->flush(sink);

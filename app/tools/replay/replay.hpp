@@ -13,6 +13,9 @@ namespace markloop::replay {
 
 struct ReplayResult {
   std::vector<MatchEvent> matches;
+  // Per match: the frame the engine was processing when it emitted it (the
+  // last frame fed for the matches of the final flush).
+  std::vector<FrameIndex> emitted_at;
   EngineCounters counters;
   TrackerCounters tracker;
   DatabaseStats database;

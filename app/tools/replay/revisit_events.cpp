@@ -1,0 +1,188 @@
+#include "app/tools/replay/revisit_events.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <unordered_map>
+
+namespace markloop::replay {
+
+namespace {
+
+// What each frame is: not a revisit, or a revisit of one kind.
+using FrameKind = std::optional<RevisitKind>;
+
+std::vector<double> travelled_distances(std::span<const Pose2> poses) {
+  std::vector<double> travelled(poses.size(), 0.0);
+  for (std::size_t i = 1; i < poses.size(); ++i)
+    travelled[i] = travelled[i - 1] + std::hypot(poses[i].x - poses[i - 1].x, poses[i].y - poses[i - 1].y);
+  return travelled;
+}
+
+// The kind of a frame near an older one with heading difference `yaw_a - yaw_b`.
+RevisitKind kind_of_heading(double yaw_a, double yaw_b) {
+  const double difference_deg = std::abs(wrap_angle(yaw_a - yaw_b)) * 180.0 / std::numbers::pi;
+  if (difference_deg <= kAlongRoadTolerance_deg) return RevisitKind::SameDirection;
+  if (difference_deg >= 180.0 - kAlongRoadTolerance_deg) return RevisitKind::OppositeDirection;
+  return RevisitKind::Crossing;
+}
+
+// Per frame: its kind when it revisits an older frame. Older frames nearby
+// are looked up in a grid of kRevisitRadius_m cells; of several, the one
+// that puts the car along the old road wins (same, then opposite).
+std::vector<FrameKind> revisit_frame_kinds(std::span<const Pose2> poses, std::span<const double> times) {
+  const auto cell = [](double v) { return static_cast<std::int64_t>(std::floor(v / kRevisitRadius_m)); };
+  const auto key = [](std::int64_t cx, std::int64_t cy) { return cx * 2654435761LL + cy; };
+  std::unordered_map<std::int64_t, std::vector<std::size_t>> grid;
+  std::vector<FrameKind> kinds(poses.size());
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const std::int64_t cx = cell(poses[i].x), cy = cell(poses[i].y);
+    FrameKind& kind = kinds[i];
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        const auto it = grid.find(key(cx + dx, cy + dy));
+        if (it == grid.end()) continue;
+        // A cell's frames are in time order: the old enough ones come first.
+        const std::vector<std::size_t>& earlier = it->second;
+        const auto old_enough = std::partition_point(earlier.begin(), earlier.end(), [&](std::size_t j) {
+          return times[i] - times[j] >= kRevisitMinAge_s;
+        });
+        for (auto j = earlier.begin(); j != old_enough && kind != RevisitKind::SameDirection; ++j) {
+          if (std::hypot(poses[i].x - poses[*j].x, poses[i].y - poses[*j].y) > kRevisitRadius_m) continue;
+          const RevisitKind k = kind_of_heading(poses[i].yaw, poses[*j].yaw);
+          if (!kind || static_cast<int>(k) < static_cast<int>(*kind)) kind = k;
+        }
+      }
+    }
+    grid[key(cx, cy)].push_back(i);
+  }
+  return kinds;
+}
+
+// The event's kind by the distance its revisit frames of each kind cover
+// (each the step to the next frame, the last one the step from the one
+// before; frames counted when the car stood still).
+RevisitKind event_kind(std::span<const FrameKind> kinds, const std::vector<double>& travelled,
+                       std::size_t first, std::size_t last) {
+  std::array<double, kRevisitKindCount> distance{}, frames{};
+  for (std::size_t i = first; i <= last; ++i) {
+    if (!kinds[i]) continue;
+    const auto k = static_cast<std::size_t>(*kinds[i]);
+    if (i < last)
+      distance[k] += travelled[i + 1] - travelled[i];
+    else if (i > first)
+      distance[k] += travelled[i] - travelled[i - 1];
+    frames[k] += 1.0;
+  }
+  double total = 0.0;
+  for (const double d : distance) total += d;
+  const auto& weight = total > 0.0 ? distance : frames;
+  if (total <= 0.0) total = frames[0] + frames[1] + frames[2];
+  for (const RevisitKind k : {RevisitKind::SameDirection, RevisitKind::OppositeDirection})
+    if (weight[static_cast<std::size_t>(k)] > 0.5 * total) return k;
+  return RevisitKind::Crossing;
+}
+
+ClosureDistances closure_distances(std::vector<double> values) {
+  ClosureDistances d;
+  d.count = values.size();
+  if (values.empty()) return d;
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  d.median_m = n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+  const auto rank = static_cast<std::size_t>(std::ceil(0.9 * static_cast<double>(n)));
+  d.p90_m = values[std::max<std::size_t>(rank, 1) - 1];
+  return d;
+}
+
+void count(RevisitCount& c, const RevisitEvent& e) {
+  ++c.total;
+  if (e.closed_at_m) ++c.closed;
+}
+
+}  // namespace
+
+std::string_view revisit_kind_name(RevisitKind kind) {
+  switch (kind) {
+    case RevisitKind::SameDirection:
+      return "same";
+    case RevisitKind::OppositeDirection:
+      return "opposite";
+    case RevisitKind::Crossing:
+      return "crossing";
+  }
+  return "?";
+}
+
+std::optional<RevisitKind> revisit_kind_from_name(std::string_view name) {
+  for (const RevisitKind k :
+       {RevisitKind::SameDirection, RevisitKind::OppositeDirection, RevisitKind::Crossing})
+    if (revisit_kind_name(k) == name) return k;
+  return std::nullopt;
+}
+
+std::vector<RevisitEvent> find_revisit_events(std::span<const Pose2> poses, std::span<const double> times) {
+  const std::vector<FrameKind> kinds = revisit_frame_kinds(poses, times);
+  const std::vector<double> travelled = travelled_distances(poses);
+  std::vector<RevisitEvent> events;
+  std::optional<std::size_t> first, last;
+  const auto finish = [&] {
+    RevisitEvent e;
+    e.first_frame = *first;
+    e.last_frame = *last;
+    e.start_m = travelled[*first];
+    e.length_m = travelled[*last] - travelled[*first];
+    e.kind = event_kind(kinds, travelled, *first, *last);
+    events.push_back(e);
+  };
+  for (std::size_t i = 0; i < kinds.size(); ++i) {
+    if (!kinds[i]) continue;
+    if (last && times[i] - times[*last] >= kRevisitMaxGap_s) finish(), first.reset();
+    if (!first) first = i;
+    last = i;
+  }
+  if (first) finish();
+  return events;
+}
+
+void close_revisit_events(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
+                          std::span<const ClosingDetection> detections) {
+  const std::vector<double> travelled = travelled_distances(poses);
+  for (const ClosingDetection& d : detections) {
+    if (!d.correct || d.query_frame >= poses.size()) continue;
+    // Events are in drive order and do not overlap: the last one starting
+    // at or before the query frame is the only one that may hold it.
+    const auto after =
+        std::upper_bound(events.begin(), events.end(), d.query_frame,
+                         [](std::size_t f, const RevisitEvent& e) { return f < e.first_frame; });
+    if (after == events.begin()) continue;
+    RevisitEvent& e = *(after - 1);
+    if (d.query_frame > e.last_frame) continue;
+    const std::size_t bus_frame = std::min(std::max(d.bus_frame, e.first_frame), poses.size() - 1);
+    const double at_m = travelled[bus_frame] - travelled[e.first_frame];
+    if (!e.closed_at_m || at_m < *e.closed_at_m) {
+      e.closed_at_m = at_m;
+      e.closing_query_frame = d.query_frame;
+    }
+  }
+}
+
+RevisitTally tally_revisit_events(std::span<const RevisitEvent> events) {
+  RevisitTally t;
+  std::vector<double> closure_long, closure_all;
+  for (const RevisitEvent& e : events) {
+    const bool long_event = e.length_m >= kLongRevisit_m;
+    count(t.by_kind[static_cast<std::size_t>(e.kind)][long_event ? 1 : 0], e);
+    count(long_event ? t.longer : t.shorter, e);
+    count(t.all, e);
+    if (!e.closed_at_m) continue;
+    closure_all.push_back(*e.closed_at_m);
+    if (long_event) closure_long.push_back(*e.closed_at_m);
+  }
+  t.closure_long = closure_distances(std::move(closure_long));
+  t.closure_all = closure_distances(std::move(closure_all));
+  return t;
+}
+
+}  // namespace markloop::replay

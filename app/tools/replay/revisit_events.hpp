@@ -1,0 +1,108 @@
+// Revisit events of a drive, found in the truth, and how far into each one
+// the first correct loop detection reached the bus (issue 64's measure).
+// Shared by markloop-eval (detections read back from CAN) and
+// markloop-replay (detections from the engine).
+//
+// A revisit frame is a frame within kRevisitRadius_m of the true position of
+// a frame at least kRevisitMinAge_s older. An event is a run of revisit
+// frames in which each follows the one before by less than
+// kRevisitMaxGap_s; it spans from its first revisit frame to its last (the
+// few frames of a gap inside it included). Its length is the distance driven
+// from its first frame to its last.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "app/engine/types.hpp"
+
+namespace markloop::replay {
+
+inline constexpr double kRevisitRadius_m = 6.0;
+inline constexpr double kRevisitMinAge_s = 30.0;
+inline constexpr double kRevisitMaxGap_s = 3.0;
+// Headings within this of the old frame's (or of its reverse) are driving
+// along the old road the same (or the opposite) way.
+inline constexpr double kAlongRoadTolerance_deg = 45.0;
+// The events the targets are read on: at least this long.
+inline constexpr double kLongRevisit_m = 50.0;
+
+// What a revisit frame does on the old road. Per frame: SameDirection when
+// one of the older frames it is near has a heading within
+// kAlongRoadTolerance_deg of its own, else OppositeDirection when one lies
+// within that of its reverse, else Crossing (the car crosses the old road or
+// turns onto or off it). Per event: SameDirection or OppositeDirection when
+// frames of that kind cover more than half of the distance driven from its
+// revisit frames (each the step to the next frame), else Crossing. A turn at
+// a junction followed by 70 m along the old road is SameDirection; a short
+// perpendicular pass, or a turn-in that leaves again, is Crossing.
+enum class RevisitKind { SameDirection, OppositeDirection, Crossing };
+inline constexpr std::size_t kRevisitKindCount = 3;
+
+// "same", "opposite", "crossing" (the JSON's names).
+std::string_view revisit_kind_name(RevisitKind kind);
+std::optional<RevisitKind> revisit_kind_from_name(std::string_view name);
+
+struct RevisitEvent {
+  std::size_t first_frame = 0;
+  std::size_t last_frame = 0;
+  double start_m = 0.0;   // distance driven from the drive's first frame to first_frame
+  double length_m = 0.0;  // distance driven from first_frame to last_frame
+  RevisitKind kind = RevisitKind::Crossing;
+  // Set by close_revisit_events: the distance driven from first_frame to the
+  // frame at which the first correct detection that closes it reached the
+  // bus, and that detection's query frame.
+  std::optional<double> closed_at_m;
+  std::optional<std::size_t> closing_query_frame;
+};
+
+// `times` in seconds, one per pose, increasing. Events in drive order.
+std::vector<RevisitEvent> find_revisit_events(std::span<const Pose2> poses, std::span<const double> times);
+
+// A loop detection as far as closing events goes: its query frame, the
+// frame at which it reached the bus (markloop-eval: the latest frame at or
+// before its CAN stamp; markloop-replay: the frame the engine was
+// processing when it emitted it) and TruthJudge's verdict.
+struct ClosingDetection {
+  std::size_t query_frame = 0;
+  std::size_t bus_frame = 0;
+  bool correct = false;
+};
+
+// A correct detection closes the event whose frames hold its query frame.
+// Each event gets the detection that reached the bus first (the smallest
+// distance; never less than 0 m). `poses` are the truth the events were
+// found in.
+void close_revisit_events(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
+                          std::span<const ClosingDetection> detections);
+
+// Closed over total events of one kind and length bucket.
+struct RevisitCount {
+  std::size_t closed = 0;
+  std::size_t total = 0;
+};
+
+// Median and p90 (nearest rank) of the closure distances of the closed
+// events; zero when none is closed.
+struct ClosureDistances {
+  std::size_t count = 0;
+  double median_m = 0.0;
+  double p90_m = 0.0;
+};
+
+// Events summed by kind and by length: [kind][0] shorter than
+// kLongRevisit_m, [kind][1] at least that long.
+struct RevisitTally {
+  std::array<std::array<RevisitCount, 2>, kRevisitKindCount> by_kind{};
+  RevisitCount shorter, longer, all;  // over every kind
+  ClosureDistances closure_long;      // events of at least kLongRevisit_m
+  ClosureDistances closure_all;
+};
+
+RevisitTally tally_revisit_events(std::span<const RevisitEvent> events);
+
+}  // namespace markloop::replay

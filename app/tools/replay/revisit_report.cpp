@@ -1,0 +1,133 @@
+#include "app/tools/replay/revisit_report.hpp"
+
+#include <string>
+
+namespace markloop::replay {
+
+namespace {
+
+constexpr RevisitKind kKinds[] = {RevisitKind::SameDirection, RevisitKind::OppositeDirection,
+                                  RevisitKind::Crossing};
+
+const char* kind_label(RevisitKind kind) {
+  switch (kind) {
+    case RevisitKind::SameDirection:
+      return "same direction";
+    case RevisitKind::OppositeDirection:
+      return "opposite direction";
+    case RevisitKind::Crossing:
+      return "crossing/turn-in";
+  }
+  return "?";
+}
+
+// "3 / 4 (75.0 %)"
+std::string count_text(const RevisitCount& c) {
+  return std::to_string(c.closed) + " / " + std::to_string(c.total) + " (" + percent_of(c.closed, c.total) +
+         ")";
+}
+
+void print_row(std::FILE* out, const char* name, const RevisitCount& shorter, const RevisitCount& longer) {
+  std::fprintf(out, "  %-22s %-22s %s\n", name, count_text(shorter).c_str(), count_text(longer).c_str());
+}
+
+void print_closure(std::FILE* out, const char* name, const ClosureDistances& d) {
+  if (d.count == 0) {
+    std::fprintf(out, "  %-40s - (none closed)\n", name);
+    return;
+  }
+  std::fprintf(out, "  %-40s %.1f / %.1f m (%zu closed)\n", name, d.median_m, d.p90_m, d.count);
+}
+
+void json_count(std::FILE* out, const char* name, const RevisitCount& c) {
+  std::fprintf(out, "\"%s\":{\"closed\":%zu,\"total\":%zu}", name, c.closed, c.total);
+}
+
+void json_closure(std::FILE* out, const char* name, const ClosureDistances& d) {
+  std::fprintf(out, "\"%s\":{\"count\":%zu,\"median_m\":%.3f,\"p90_m\":%.3f}", name, d.count, d.median_m,
+               d.p90_m);
+}
+
+}  // namespace
+
+std::string percent_of(std::size_t part, std::size_t whole) {
+  if (whole == 0) return "-";
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f %%", 100.0 * static_cast<double>(part) / static_cast<double>(whole));
+  return text;
+}
+
+void print_revisit_tally(std::FILE* out, const RevisitTally& t) {
+  std::fprintf(
+      out,
+      "\nRevisit events (frames within %.0f m of a frame at least %.0f s older, joined while the\n"
+      "gaps are under %.0f s; closed by the first correct detection whose query frame is in the event)\n",
+      kRevisitRadius_m, kRevisitMinAge_s, kRevisitMaxGap_s);
+  std::fprintf(out, "  %-22s %-22s %s\n", "closed / events", "shorter than 50 m", "50 m or more");
+  for (const RevisitKind k : kKinds) {
+    const auto& row = t.by_kind[static_cast<std::size_t>(k)];
+    print_row(out, kind_label(k), row[0], row[1]);
+  }
+  print_row(out, "all", t.shorter, t.longer);
+  print_closure(out, "closed at, median / p90 (50 m or more)", t.closure_long);
+  print_closure(out, "closed at, median / p90 (all)", t.closure_all);
+}
+
+void print_revisit_events(std::FILE* out, std::span<const RevisitEvent> events, std::size_t limit) {
+  for (std::size_t i = 0; i < events.size() && i < limit; ++i) {
+    const RevisitEvent& e = events[i];
+    std::fprintf(out, "    event at frame %zu (to %zu): %.1f m, %s, ", e.first_frame, e.last_frame,
+                 e.length_m, kind_label(e.kind));
+    if (e.closed_at_m)
+      std::fprintf(out, "closed at %.1f m (query frame %zu)\n", *e.closed_at_m, *e.closing_query_frame);
+    else
+      std::fprintf(out, "never closed\n");
+  }
+  if (events.size() > limit) std::fprintf(out, "    ... %zu more (all in --json)\n", events.size() - limit);
+}
+
+void json_revisit_tally(std::FILE* out, const RevisitTally& t) {
+  std::fputc('{', out);
+  for (const RevisitKind k : kKinds) {
+    const auto& row = t.by_kind[static_cast<std::size_t>(k)];
+    std::fprintf(out, "\"%s\":{", std::string(revisit_kind_name(k)).c_str());
+    json_count(out, "shorter", row[0]);
+    std::fputc(',', out);
+    json_count(out, "longer", row[1]);
+    std::fprintf(out, "},");
+  }
+  json_count(out, "shorter", t.shorter);
+  std::fputc(',', out);
+  json_count(out, "longer", t.longer);
+  std::fputc(',', out);
+  json_count(out, "all", t.all);
+  std::fputc(',', out);
+  json_closure(out, "closure_longer", t.closure_long);
+  std::fputc(',', out);
+  json_closure(out, "closure_all", t.closure_all);
+  std::fputc('}', out);
+}
+
+void json_revisits(std::FILE* out, std::span<const RevisitEvent> events, const RevisitTally& tally) {
+  std::fprintf(out,
+               "\"revisits\":{\"radius_m\":%g,\"min_age_s\":%g,\"max_gap_s\":%g,\"longer_m\":%g,\"events\":[",
+               kRevisitRadius_m, kRevisitMinAge_s, kRevisitMaxGap_s, kLongRevisit_m);
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const RevisitEvent& e = events[i];
+    std::fprintf(
+        out,
+        "%s{\"first_frame\":%zu,\"last_frame\":%zu,\"start_m\":%.3f,\"length_m\":%.3f,\"kind\":\"%s\","
+        "\"closed_at_m\":",
+        i ? "," : "", e.first_frame, e.last_frame, e.start_m, e.length_m,
+        std::string(revisit_kind_name(e.kind)).c_str());
+    if (e.closed_at_m)
+      std::fprintf(out, "%.3f,\"closing_query_frame\":%zu}", *e.closed_at_m, *e.closing_query_frame);
+    else
+      std::fprintf(out, "null,\"closing_query_frame\":null}");
+  }
+  std::fprintf(out, "],\"tally\":");
+  json_revisit_tally(out, tally);
+  std::fputc('}', out);
+}
+
+}  // namespace markloop::replay
