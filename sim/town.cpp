@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
 
 #include "app/perception/marking_classes.hpp"
 
@@ -213,20 +214,25 @@ Label approach_arrow(int lane, int lanes, std::mt19937_64& rng) {
 // per lane, and on half the approaches a second arrow further back.
 void TownPainter::paint_approach(const Street& s, const Stretch& st, int d, std::mt19937_64& rng,
                                  Occupied& occupied) {
-  const double end = st.length(), w = town_.lane_width_m;
-  lay(s, st, d, crosswalk_, end - LegLayout::kCrosswalkFrom - marking_size(crosswalk_, w, 2)[0] / 2, kAcross,
-      occupied);
+  const double w = town_.lane_width_m;
+  const auto between = [&](const std::array<double, 2>& range) {
+    return range[0] + (range[1] - range[0]) * unit_(rng);
+  };
+  const double crosswalk_length = marking_size(crosswalk_, w, 2)[0];
+  const double stop_line_length = marking_size(stop_line_, w, 1)[0];
+  const double crosswalk_end = st.length() - between(LegLayout::kCrosswalkFrom);
+  lay(s, st, d, crosswalk_, crosswalk_end - crosswalk_length / 2, kAcross, occupied);
+  const double stop_line_end = crosswalk_end - crosswalk_length - between(LegLayout::kStopLineGap);
   for (int lane = 0; lane < s.lanes; ++lane)
-    lay(s, st, d, stop_line_, end - LegLayout::kStopLineFrom - marking_size(stop_line_, w, 1)[0] / 2, lane,
-        occupied);
+    lay(s, st, d, stop_line_, stop_line_end - stop_line_length / 2, lane, occupied);
+  const double arrow_end = stop_line_end - stop_line_length - between(LegLayout::kArrowGap);
   const bool twice = unit_(rng) < 0.5;
   const double back = 12.0 + 10.0 * unit_(rng);
   for (int lane = 0; lane < s.lanes; ++lane) {
     const Label arrow = approach_arrow(lane, s.lanes, rng);
     const double length = marking_size(arrow, w, 1)[0];
-    const double t = end - LegLayout::kArrowFrom - length / 2;
-    lay(s, st, d, arrow, t, lane, occupied);
-    if (twice) lay(s, st, d, arrow, t - length - back, lane, occupied);
+    lay(s, st, d, arrow, arrow_end - length / 2, lane, occupied);
+    if (twice) lay(s, st, d, arrow, arrow_end - 1.5 * length - back, lane, occupied);
   }
 }
 
@@ -342,9 +348,9 @@ void lay_town(const Town& town, std::uint64_t seed, bool look_alike, Scenario& s
   }
 }
 
-// First a long loop over three streets (rows 1 and 3 east and west), then
-// four blocks of them, each between another pair of columns, re-entered
-// by a turn and left by a turn; the first move south crosses row 1. The
+// First east along row 1, north, and west along row 3; then four blocks
+// of those rows, each between another pair of columns, re-entered by a
+// turn and left by a turn; the first move south crosses row 1. The
 // blocks east-west are 67 to 135 m long, so the four overlaps 50 to 120 m.
 TownPlan turn_ins_plan(std::mt19937_64& rng) {
   TownPlan plan{grid_town(rng, 6, 4, {67.0, 135.0}, {60.0, 90.0}, 0.3), {}, {}, false};
@@ -389,7 +395,8 @@ TownPlan avenue_plan(std::mt19937_64& rng) {
 // A serpentine over rows about 4 km long, each driven once, until `km`.
 TownPlan far_plan(std::mt19937_64& rng, double km) {
   TownPlan plan{grid_town(rng, 41, 1, {75.0, 125.0}, {75.0, 125.0}, 0.3), {}, {}, false};
-  plan.description = "a town serpentine that never comes back (20 km; --laps N: N km)";
+  plan.description =
+      "a " + std::to_string(std::lround(km)) + " km town serpentine that never comes back (--laps N: N km)";
   Town& town = plan.town;
   const double row = town.xs.back() - town.xs.front(), last = static_cast<double>(town.xs.size() - 1);
   std::uniform_real_distribution<double> gap(75.0, 125.0), unit(0.0, 1.0);

@@ -37,12 +37,13 @@ struct Town {
 };
 
 // Where the paint of an intersection's leg lies, in metres from the
-// intersection box's edge outwards.
+// intersection box's edge outwards. Each approach draws its own distances
+// from these ranges, as real intersections differ by a metre or more.
 struct LegLayout {
-  static constexpr double kCrosswalkFrom = 0.5;  // a crosswalk 3 m long
-  static constexpr double kStopLineFrom = 4.5;   // 1 m after it, 0.45 m wide
-  static constexpr double kLinesFrom = 4.95;     // lane lines start behind the stop line
-  static constexpr double kArrowFrom = 6.95;     // arrows 2 m behind the stop line
+  static constexpr std::array<double, 2> kCrosswalkFrom{0.5, 2.0};  // a crosswalk 3 m long
+  static constexpr std::array<double, 2> kStopLineGap{1.0, 2.5};    // then a stop line 0.45 m wide
+  static constexpr std::array<double, 2> kArrowGap{2.0, 6.0};       // then the arrows
+  static constexpr double kLinesFrom = 8.0;                         // lane lines end behind every stop line
 };
 
 // A place on the grid: column i, row j. Fractional between crossings;

@@ -235,7 +235,7 @@ TEST_CASE("every leg of every intersection has a crosswalk and a stop line per a
         std::vector<double> stop_line_out(static_cast<std::size_t>(lanes), 0.0);
         for (const Marking& m : t.scenario.markings) {
           const auto [out, right] = leg_offset(leg, m.x, m.y);
-          if (out < 0.0 || out > 8.0 || std::abs(right) > lanes * w) continue;
+          if (out < 0.0 || out > 10.0 || std::abs(right) > lanes * w) continue;
           const bool along_leg = std::abs(std::sin(m.heading - inbound)) < 1e-6;
           if (m.label == crosswalk && along_leg && std::abs(right) < 0.1 && m.width_m >= 2 * lanes * w - 0.5)
             crosswalk_out = out;
