@@ -59,7 +59,8 @@ options:
   --speed M/S       driving speed, 0.1..100; default 10, or a route's own
                     average speed when it lies in 0.5..100
   --fps HZ          camera frame rate, 1..1000; default 10
-  --laps N          drive a built-in scenario's lap N times (up to 1000)
+  --laps N          drive a built-in scenario's lap N times (up to 1000);
+                    for far, N km
   --camera FILE     calibration (OpenCV YAML, as the ECU reads); default the
                     built-in 1280x512 camera (app/cameras/sim.yaml)
   --light L         day, dusk, night or wet-glare; default day
@@ -281,9 +282,12 @@ Scenario scenario_for(DriveRequest& r) {
     return scenario;
   }
   if (r.scenario_name.empty()) r.scenario_name = "loop";
+  // "far" never comes back: its --laps is its length in km.
+  const bool laps_are_km = r.scenario_name == "far";
+  if (laps_are_km && r.laps) r.world.route_km = *r.laps;
   std::optional<Scenario> scenario = make_scenario(r.scenario_name, r.options.seed, r.world);
   if (!scenario) fail("unknown scenario '" + r.scenario_name + "' (see: markloop-sim list)");
-  if (r.laps) scenario->laps = static_cast<int>(*r.laps);
+  if (r.laps && !laps_are_km) scenario->laps = static_cast<int>(*r.laps);
   return std::move(*scenario);
 }
 

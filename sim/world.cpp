@@ -8,6 +8,8 @@
 #include <random>
 #include <unordered_map>
 
+#include "sim/town.hpp"
+
 namespace markloop::sim {
 
 namespace {
@@ -586,7 +588,9 @@ Pose2 Path::at(double s) const {
 }
 
 std::vector<std::string> scenario_names() {
-  return {"loop", "ring", "figure8", "long", "grid", "two-days"};
+  std::vector<std::string> names{"loop", "ring", "figure8", "long", "grid", "two-days"};
+  for (std::string& town : town_scenario_names()) names.push_back(std::move(town));
+  return names;
 }
 
 namespace {
@@ -631,6 +635,7 @@ std::vector<RowSegment> street_segments(const std::vector<StreetStart>& streets,
 }  // namespace
 
 std::optional<Scenario> make_scenario(std::string_view name, std::uint64_t seed, const WorldConfig& config) {
+  if (std::optional<TownScenario> town = make_town(name, seed, config)) return std::move(town->scenario);
   Scenario s;
   s.name = std::string(name);
   std::vector<RowSegment> segments;

@@ -84,6 +84,9 @@ struct WorldConfig {
   // A stretch of route within this distance of an earlier one, heading within
   // 45 degrees, is a revisit of that road.
   double revisit_radius_m = 2.5;
+  // The length of the town scenario "far", which never comes back (0: its
+  // default).
+  double route_km = 0.0;
 };
 
 // Default class mix of the newer scenarios: arrows dominate, as on urban roads.
