@@ -1,10 +1,22 @@
 #include "sim/drive.hpp"
+
+#include <string_view>
+
 #include "app/common/units.hpp"
+#include "app/perception/marking_classes.hpp"
 
 #include <cmath>
 #include <numbers>
 
 namespace markloop::sim {
+namespace {
+
+bool looks_alike_turned(Label label) {
+  const std::string_view name = perception::marking_class_name(label);
+  return name == "stopline" || name == "crosswalk" || name == "diamond";
+}
+
+}  // namespace
 
 namespace {
 // A wrong label is one of the symbol classes (arrows, words, numbers, bike,
@@ -83,8 +95,10 @@ bool Drive::next(DriveFrame& out) {
         if (rel.x < config_.view_near_m || rel.x > config_.view_far_m ||
             std::abs(rel.y) > config_.view_half_width_m)
           continue;
-        // Markings facing the other way are painted for the opposite lane.
-        if (std::cos(wrap_angle(m.heading - truth.yaw)) < 0.5) continue;
+        // Markings facing the other way are painted for the opposite lane:
+        // upside down, only the shapes that a half turn leaves alike are
+        // recognised (a stop line, a crosswalk, a diamond).
+        if (std::cos(wrap_angle(m.heading - truth.yaw)) < 0.5 && !looks_alike_turned(m.label)) continue;
         if (unit(rng_) >= config_.detection_probability) continue;
         observe(rel.x, rel.y, m.label, m.id);
       }

@@ -57,18 +57,22 @@ struct ObservationGate {
 // defaults (why: the descriptions in settings.cpp and docs/decisions.md):
 // more sightings keep single-frame clutter out, the odometry prior and the
 // frame distance reject look-alike places, loaded places need confirming,
-// a loose match would give a poor relative pose, and places close loops
-// where the sequences cannot (turns into old roads, the other direction). k stays at the
+// a loose match would give a poor relative pose, places close loops where
+// the sequences cannot (turns into old roads, the other direction), visits
+// far apart need a longer run, and landmarks join the chains soon after the
+// car passes them, so that a loop closes within metres of its last marking. k stays at the
 // engine's: shorter sequences let look-alike city blocks confirm wrong
 // alignments across sessions.
 inline EngineConfig ecu_engine_defaults() {
   EngineConfig c;
   c.tracker.min_observations = 3;
+  c.tracker.release_lag_m = 5.0;
   c.match.max_residual_m = 0.3;
   c.match.max_drift_rel = 0.02;
   c.match.max_frame_distance_m = 5.0;
   c.match.confirm_loaded_places = true;
   c.match.place_landmarks = 3;
+  c.match.far_run_m = 150.0;
   return c;
 }
 

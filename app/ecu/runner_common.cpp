@@ -243,6 +243,7 @@ void print_engine_counters(std::FILE* out, const EngineCounters& e, const PlaceC
       {"matches", e.matches},
       {"closures_extended", e.closures_extended},
       {"matches_over_skipped_row", e.matches_over_skipped_row},
+      {"matches_held_far", e.matches_held_far},
       {"place_matches", e.place_matches},
       {"place_queries", p.queries},
       {"place_hypotheses", p.hypotheses},

@@ -85,6 +85,14 @@ struct MatchConfig {
   bool confirm_loaded_places = false;
   double confirm_min_gap_m = 50.0;
   double confirm_within_m = 300.0;
+  // Beyond far_after_m of driving between the two visits the odometry prior
+  // admits too much of the map to tell look-alike places apart: a sequence
+  // match is only sent once the run of matches continuing it spans far_run_m
+  // of the drive (more than one intersection's markings, which look alike
+  // everywhere); 0: no such wait. Places (below) are never matched that far
+  // back.
+  double far_after_m = 2500.0;
+  double far_run_m = 0.0;
   // Place matching (app/engine/place_matcher.hpp), beside the sequences: when
   // this many of the landmarks released within the last place_window_m agree,
   // in any order, with landmarks stored where the odometry puts them (within

@@ -175,19 +175,23 @@ bool PlaceMatcher::beyond_prior(const Hypothesis& h) const {
   const double allowed =
       std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * h.driven_m);
   const double turned = std::abs(h.fit.transform.yaw) * 180.0 / std::numbers::pi;
-  return apart > allowed ||
+  return h.driven_m > config_.far_after_m || apart > allowed ||
          turned > config_.max_drift_yaw_abs_deg + config_.max_drift_yaw_rel_deg_per_m * h.driven_m;
 }
 
 bool PlaceMatcher::disagree(const Hypothesis& a, const Hypothesis& b) const {
   // Two earlier visits of one place lie as far apart as the odometry drifted
-  // between them; a look-alike lies further.
+  // between them; two anchors of one visit are one place only when they are
+  // one marking. Anything else is a look-alike (another crosswalk of the
+  // same intersection, the same layout a block away).
   const Landmark& anchor_a = *a.pairs[0].stored;
   const Landmark& anchor_b = *b.pairs[0].stored;
   const double driven = std::abs(anchor_a.station - anchor_b.station);
-  const double same_place =
-      std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * driven);
-  return (point(anchor_a) - point(anchor_b)).norm() > same_place + kDistinct_m;
+  const double drifted =
+      driven <= config_.place_window_m
+          ? 0.0
+          : std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * driven);
+  return (point(anchor_a) - point(anchor_b)).norm() > drifted + kDistinct_m;
 }
 
 void PlaceMatcher::fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const {

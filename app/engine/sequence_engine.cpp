@@ -62,6 +62,8 @@ const char* validate(const EngineConfig& c) {
   if (!finite_non_negative(c.match.max_frame_distance_m)) return "frame distance limit must be non-negative";
   if (!finite_non_negative(c.match.confirm_within_m) || !finite_non_negative(c.match.confirm_min_gap_m))
     return "confirmation distances must be non-negative";
+  if (!finite_non_negative(c.match.far_after_m) || !finite_non_negative(c.match.far_run_m))
+    return "far revisit distances must be non-negative";
   if (c.match.place_landmarks != 0 &&
       (c.match.place_landmarks < kMinSequenceLength || c.match.place_landmarks > kMaxSequenceLength))
     return "place landmarks must be 0 (off) or between 2 and 10";
@@ -313,9 +315,13 @@ bool SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {
   }
   confirmed_matches_.clear();
   if (found) {
+    extend_closure_run(best_);
+    if (waits_for_longer_run(best_)) {
+      ++counters_.matches_held_far;
+      return true;
+    }
     ++counters_.matches;
     if (found_over_skipped_row) ++counters_.matches_over_skipped_row;
-    extend_closure_run(best_);
     sink.on_match(best_);
   }
   return found;
@@ -605,6 +611,15 @@ void SequenceEngine::set_relative_pose(MatchEvent& event) const {
   if (relative) event.relative_pose = *relative;
 }
 
+bool SequenceEngine::waits_for_longer_run(const MatchEvent& event) const {
+  const MatchConfig& mc = config_.match;
+  const double then = event.match[event.k - 1].station;
+  // A loaded map's places (negative stations) are confirmed their own way.
+  if (mc.far_run_m <= 0.0 || then < 0.0) return false;
+  const double run = event.query[event.k - 1].station - closure_run_start_station_;
+  return event.query[0].station - then > mc.far_after_m && run < mc.far_run_m;
+}
+
 void SequenceEngine::extend_closure_run(MatchEvent& event) {
   const unsigned k = event.k;
   const auto pair_at = [&](unsigned i) { return LandmarkPair{event.query[i].id, event.match[i].id}; };
@@ -613,6 +628,7 @@ void SequenceEngine::extend_closure_run(MatchEvent& event) {
   const bool continues = !closure_run_.empty() && closure_run_.back().query == event.query[k - 2].id &&
                          closure_run_.back().match == event.match[k - 2].id;
   const auto start_run_here = [&] {
+    closure_run_start_station_ = event.query[0].station;
     closure_run_.clear();
     for (unsigned i = 0; i < k; ++i) (void)closure_run_.push_back(pair_at(i));
   };

@@ -93,6 +93,8 @@ struct EngineCounters {
   // a stored sequence over a skipped row is not counted here).
   std::uint64_t matches_over_skipped_row = 0;
   std::uint64_t place_matches = 0;  // of matches, by place (PlaceMatcher)
+  // Sequence matches between visits far apart, held until further rows continue them.
+  std::uint64_t matches_held_far = 0;
 };
 
 class SequenceEngine {
@@ -152,6 +154,9 @@ class SequenceEngine {
   // run: k points nearly in a line along the road leave the rotation, and so
   // the pose at the car, the least certain; a few more rows pin it down.
   void extend_closure_run(MatchEvent& event);
+  // A match between visits more than far_after_m apart whose run still
+  // spans less than far_run_m.
+  bool waits_for_longer_run(const MatchEvent& event) const;
 
   // The new sequence being matched; its landmarks live in the MatchEvent
   // being filled.
@@ -250,6 +255,7 @@ class SequenceEngine {
   };
   static constexpr std::size_t kMaxRunPairs = 6;
   FixedVector<LandmarkPair, kMaxRunPairs> closure_run_;
+  double closure_run_start_station_ = 0.0;  // of the run's first query landmark
   // Last landmarks of recent verified sequences into a loaded map, so that a
   // sequence a row further on can be seen to continue one.
   FixedVector<LandmarkPair, 32> loaded_pairs_;

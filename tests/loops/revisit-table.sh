@@ -17,16 +17,17 @@
 # drive failed (the table sums the others), 2 on bad options.
 set -euo pipefail
 
-# The default drives: every scenario over several seeds, some at night, with
-# worn paint, many vehicles ahead or three times the odometry's drift. A new
-# scenario is one more line here.
+# The default drives: the town's revisit shapes (turn-ins, opposite,
+# closing, the look-alike avenue) and the older scenarios, over several
+# seeds, some at night, with worn paint, many vehicles ahead or three times
+# the odometry's drift. A new scenario is one more line here.
 DEFAULT_DRIVES=(
-  loop:1 loop:2 loop:3:--light,night loop:4:--wear,0.7 loop:5:--occluders,0.8
-  figure8:1 figure8:2 figure8:3:--drift,3 figure8:4:--light,night
-  grid:1 grid:2 grid:3:--light,night grid:4:--wear,0.7 grid:5:--occluders,0.8 grid:6:--drift,3
-  ring:1 ring:2:--drift,3 ring:3:--wear,0.7
-  two-days:1 two-days:2:--occluders,0.8
-  loop:6:--drift,3
+  turn-ins:1 turn-ins:2 turn-ins:3:--light,night turn-ins:4:--wear,0.7 turn-ins:5:--occluders,0.8
+  turn-ins:6:--drift,3
+  opposite:1 opposite:2 opposite:3:--light,night opposite:4:--drift,3
+  closing:1 closing:2:--wear,0.7 closing:3:--occluders,0.8 closing:4:--drift,3
+  avenue:1 avenue:2:--light,night avenue:3:--drift,3
+  loop:1 loop:2:--drift,3 grid:1 grid:2:--light,night figure8:1 two-days:1 ring:1
 )
 
 here=$(cd "$(dirname "$0")" && pwd)

@@ -67,10 +67,16 @@ engine (each value must lie in the range given):
   --min-observations N   detections needed to make a landmark, 1 to 1000;
                          default 2
   --skip-rows N          rows a sequence may step over, 0 or 1; default 1
+  --release-lag M        landmarks enter the chains once the car is this far
+                         past them, 0 to 1000 m; default 15
   --place N              place matching beside the sequences: N recent
                          landmarks agreeing in any order with those stored
                          where the odometry puts the car, 2 to 10; default 0
                          (off: the paper's sequences alone)
+  --place-search M       largest drift a place match allows, 1 to 1000 m;
+                         default 40
+  --place-distinct M     no other place within this distance may fit as
+                         well, 1 to 10000 m; default 150
   --max-drift-rel R      odometry prior: two visits of a place lie at most
                          5 m + R * distance driven between them apart, 0 to
                          1; default 0 (off)
@@ -144,7 +150,10 @@ constexpr OptionSpec kOptions[] = {
     {"--commit-after", "S", "a marking unseen this long has left view"},
     {"--min-observations", "N", "detections needed to make a landmark"},
     {"--skip-rows", "N", "rows a sequence may step over"},
+    {"--release-lag", "M", "landmarks enter the chains this far behind the car"},
     {"--place", "N", "place matching: N landmarks agreeing in any order"},
+    {"--place-search", "M", "largest drift a place match allows"},
+    {"--place-distinct", "M", "no other place within this distance may fit as well"},
     {"--max-drift-rel", "R", "odometry prior, share of the distance driven"},
     {"--max-frame-distance", "M", "largest distance between a loop's two frames"},
     {"--sequence-capacity", "N", "database size in sequences"},
@@ -210,9 +219,18 @@ constexpr NumericOption kNumericOptions[] = {
     {"--skip-rows",
      {0, 1, "", true},
      [](Options& o, double v) { o.engine.chain.max_skipped_rows = static_cast<unsigned>(v); }},
+    {"--release-lag",
+     {0.0, 1000.0, "metres", false},
+     [](Options& o, double v) { o.engine.tracker.release_lag_m = v; }},
     {"--place",
      {0, kMaxSequenceLength, "", true},
      [](Options& o, double v) { o.engine.match.place_landmarks = static_cast<unsigned>(v); }},
+    {"--place-search",
+     {1.0, 1000.0, "metres", false},
+     [](Options& o, double v) { o.engine.match.place_search_m = v; }},
+    {"--place-distinct",
+     {1.0, 10000.0, "metres", false},
+     [](Options& o, double v) { o.engine.match.place_distinct_m = v; }},
     {"--max-drift-rel",
      {0.0, 1.0, "", false},
      [](Options& o, double v) { o.engine.match.max_drift_rel = v; }},
@@ -541,6 +559,17 @@ void print_counters(const Replay& r, const ReplayResult& result, unsigned k) {
       (unsigned long long)c.sequences_created, k, (unsigned long long)c.queries,
       (unsigned long long)c.candidates, (unsigned long long)c.candidates_too_recent,
       (unsigned long long)c.candidates_rejected_residual);
+  const PlaceCounters& p = result.places;
+  if (p.queries > 0)
+    std::printf(
+        "markloop-replay: places: %llu queries, %llu hypotheses (%llu with too few pairs, %llu failed the "
+        "rigid fit), %llu beyond the drift limits, %llu ambiguous, %llu matches\n",
+        (unsigned long long)p.queries, (unsigned long long)p.hypotheses, (unsigned long long)p.too_few_pairs,
+        (unsigned long long)p.rejected_residual, (unsigned long long)p.rejected_drift,
+        (unsigned long long)p.ambiguous, (unsigned long long)p.matches);
+  if (c.matches_held_far > 0)
+    std::printf("markloop-replay: %llu sequence matches held back (visits far apart, run too short)\n",
+                (unsigned long long)c.matches_held_far);
 }
 
 void print_loop(const Replay& r, const MatchEvent& e) {

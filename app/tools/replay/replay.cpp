@@ -100,6 +100,7 @@ ReplayResult run_engine(const std::vector<MarkingRecord>& records, const std::ve
   }
   engine->flush(sink);
   result.counters = engine->counters();
+  result.places = engine->place_counters();
   result.tracker = engine->tracker_counters();
   result.database = engine->database().stats();
   return result;

@@ -17,6 +17,7 @@ struct ReplayResult {
   // last frame fed for the matches of the final flush).
   std::vector<FrameIndex> emitted_at;
   EngineCounters counters;
+  PlaceCounters places;
   TrackerCounters tracker;
   DatabaseStats database;
   std::size_t frames = 0;
