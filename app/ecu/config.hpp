@@ -72,7 +72,7 @@ inline EngineConfig ecu_engine_defaults() {
   c.match.max_frame_distance_m = 5.0;
   c.match.confirm_loaded_places = true;
   c.match.place_landmarks = 3;
-  c.match.far_run_m = 150.0;
+  c.match.far_run_m = 300.0;
   return c;
 }
 

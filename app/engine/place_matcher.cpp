@@ -18,6 +18,9 @@ constexpr double kPredictAbs_m = 0.75;
 constexpr double kPredictRel = 0.09;
 // Slack on the distance between two earlier visits of one place.
 constexpr double kDistinct_m = 2.0;
+// A hypothesis this many times beyond the drift limits cannot be where the
+// car is, even if the limits were too tight: no rival of one within them.
+constexpr double kRivalSlack = 3.0;
 // The query's landmarks must spread at least this far: side by side markings
 // of one row leave the rotation unknown.
 constexpr double kMinSpread_m = 3.0;
@@ -81,9 +84,9 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
       best = i;
   }
   if (best == found) return false;
-  // ...with no rival anywhere near: another visit of the same place agrees.
+  // ...with no plausible rival: another visit of the same place agrees.
   for (std::size_t i = 0; i < found; ++i) {
-    if (disagree(hypotheses_[i], hypotheses_[best])) {
+    if (plausible(hypotheses_[i]) && disagree(hypotheses_[i], hypotheses_[best])) {
       ++counters_.ambiguous;
       return false;
     }
@@ -165,17 +168,24 @@ bool PlaceMatcher::fit_pairs(Hypothesis& h) const {
   }
 }
 
-bool PlaceMatcher::beyond_prior(const Hypothesis& h) const {
+double PlaceMatcher::apart(const Hypothesis& h) {
   Eigen::Vector2d query_centre = Eigen::Vector2d::Zero(), stored_centre = Eigen::Vector2d::Zero();
   for (const Pair& p : h.pairs) {
     query_centre += point(*p.query);
     stored_centre += point(*p.stored);
   }
-  const double apart = (query_centre - stored_centre).norm() / static_cast<double>(h.pairs.size());
+  return (query_centre - stored_centre).norm() / static_cast<double>(h.pairs.size());
+}
+
+bool PlaceMatcher::plausible(const Hypothesis& h) const {
+  return apart(h) <= kRivalSlack * (config_.max_drift_abs_m + config_.max_drift_rel * h.driven_m);
+}
+
+bool PlaceMatcher::beyond_prior(const Hypothesis& h) const {
   const double allowed =
       std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * h.driven_m);
   const double turned = std::abs(h.fit.transform.yaw) * 180.0 / std::numbers::pi;
-  return h.driven_m > config_.far_after_m || apart > allowed ||
+  return h.driven_m > config_.far_after_m || apart(h) > allowed ||
          turned > config_.max_drift_yaw_abs_deg + config_.max_drift_yaw_rel_deg_per_m * h.driven_m;
 }
 

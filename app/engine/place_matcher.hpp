@@ -8,8 +8,9 @@
 //     -> each hypothesis predicts where the other recent landmarks lie in the
 //        stored map; those found there (same label) are its pairs
 //     -> rigid fit of the pairs; odometry prior on the fitted drift
-//     -> a match only when no other alignment fits as well within
-//        `place_distinct_m`: a constellation repeated nearby (the same
+//     -> a match only when no other place that the odometry could put the
+//        car at (a few times the drift limits, within `place_distinct_m`)
+//        fits as well: a constellation repeated nearby (the same
 //        intersection layout a block away) is never a place.
 #pragma once
 
@@ -77,6 +78,10 @@ class PlaceMatcher {
   bool fit_pairs(Hypothesis& h) const;
   bool old_enough(const Landmark& stored, const Landmark& query) const;
   bool beyond_prior(const Hypothesis& h) const;
+  // Mean distance between the paired landmarks: the drift it implies.
+  static double apart(const Hypothesis& h);
+  // Within a few times the drift limits: it could be where the car is.
+  bool plausible(const Hypothesis& h) const;
   // Whether two alignments put the newest landmark in different places.
   // Whether two hypotheses' anchors are different places, not two visits of one.
   bool disagree(const Hypothesis& a, const Hypothesis& b) const;

@@ -77,6 +77,11 @@ engine (each value must lie in the range given):
                          default 40
   --place-distinct M     no other place within this distance may fit as
                          well, 1 to 10000 m; default 150
+  --far-after M          visits further apart along the drive than this, 0
+                         to 1000000 m, need a longer run (--far-run); places
+                         are not matched that far back; default 2500
+  --far-run M            ... the run of matches continuing such a match must
+                         span this much of the drive, 0 to 100000 m; default 0
   --max-drift-rel R      odometry prior: two visits of a place lie at most
                          5 m + R * distance driven between them apart, 0 to
                          1; default 0 (off)
@@ -154,6 +159,8 @@ constexpr OptionSpec kOptions[] = {
     {"--place", "N", "place matching: N landmarks agreeing in any order"},
     {"--place-search", "M", "largest drift a place match allows"},
     {"--place-distinct", "M", "no other place within this distance may fit as well"},
+    {"--far-after", "M", "visits this far apart need a longer run"},
+    {"--far-run", "M", "the run such a match needs"},
     {"--max-drift-rel", "R", "odometry prior, share of the distance driven"},
     {"--max-frame-distance", "M", "largest distance between a loop's two frames"},
     {"--sequence-capacity", "N", "database size in sequences"},
@@ -231,6 +238,12 @@ constexpr NumericOption kNumericOptions[] = {
     {"--place-distinct",
      {1.0, 10000.0, "metres", false},
      [](Options& o, double v) { o.engine.match.place_distinct_m = v; }},
+    {"--far-after",
+     {0.0, 1e6, "metres", false},
+     [](Options& o, double v) { o.engine.match.far_after_m = v; }},
+    {"--far-run",
+     {0.0, 1e5, "metres", false},
+     [](Options& o, double v) { o.engine.match.far_run_m = v; }},
     {"--max-drift-rel",
      {0.0, 1.0, "", false},
      [](Options& o, double v) { o.engine.match.max_drift_rel = v; }},
