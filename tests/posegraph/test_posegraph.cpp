@@ -81,7 +81,7 @@ Corrected correct(const std::vector<Pose2>& odometry, const std::vector<LoopMeas
   const PoseGraph graph = build_graph(odometry, loops, options);
   Result<SolveReport> solved = optimise(graph, solver);
   REQUIRE(solved);
-  const std::vector<Pose2> after = frames_from_nodes(graph, solved->nodes, odometry);
+  const std::vector<Pose2> after = frames_from_nodes(graph, solved->nodes, odometry, solved->scale);
   return {trajectory_error(odometry, truth)->ate_rmse_m, trajectory_error(after, truth)->ate_rmse_m, *solved};
 }
 
@@ -166,9 +166,11 @@ TEST_CASE("command line: writes the trajectories and prints the ATE") {
     dbc::E2eSenderState sender;
     const Truth truth = circle_truth();
     double t = 60.0;
-    for (const LoopMeasurement& m : true_loops(truth))
+    for (const LoopMeasurement& m : true_loops(truth)) {
+      t += 0.1;
       eval::fixture::send_detection(log, sender, static_cast<std::uint8_t>(t), m.query, m.match, m.relative.x,
-                                    m.relative.y, m.relative.yaw * kDegreesPerRadian, t += 0.1);
+                                    m.relative.y, m.relative.yaw * kDegreesPerRadian, t);
+    }
     std::ofstream frames(dir / "frames.csv");
     frames << "frame,t,x,y,yaw\n";
     for (std::size_t k = 0; k < truth.poses.size(); ++k)
