@@ -30,9 +30,8 @@ constexpr const char* kUsage = R"(usage: markloop-posegraph --can-in FILE --can-
        markloop-posegraph --replay-jsonl FILE --poses FILE --out DIR [options]
 
 Builds a 2-D pose graph from the car's odometry and markloop's loop
-closures, optimises it with Ceres Solver (robust loss on the loops, and
-the odometry's scale error as one more unknown) and writes the trajectory
-before and after. With --truth it prints the
+closures, optimises it with Ceres Solver (robust loss on the loops) and
+writes the trajectory before and after. With --truth it prints the
 absolute and relative trajectory errors before and after.
 
 input (the bus as recorded, candump -l logs on the recording's clock:
@@ -53,7 +52,7 @@ length d over dt seconds: along d * R + 0.01 m, heading DPS * dt, across
 d * heading / 2 + 0.01 m; of a loop edge: position its PoseResidual, at
 least the floor, heading the loop sigma):
   --keyframe-spacing M     a node every M metres driven (0: every frame),
-                           0 to 100; default 8. A loop's frames are attached
+                           0 to 100; default 10. A loop's frames are attached
                            to their nearest nodes by the odometry between
   --loop-nodes             every frame a loop names gets a node instead
   --odometry-scale-error R relative distance error, 0.0001 to 1; default 0.01
@@ -64,8 +63,9 @@ least the floor, heading the loop sigma):
                            loop sigmas, comma-separated, each 0.1 to 1e6;
                            default 100,2
   --no-robust              plain least squares on the loops (for comparison)
-  --no-scale               do not estimate the odometry's scale error s (its
-                           translations scaled by 1 + s)
+  --estimate-scale         also estimate the odometry's scale error s (its
+                           translations scaled by 1 + s), after the robust
+                           stages, without the loops they rejected
   --scale-prior SIGMA      standard deviation of the prior on s, 0.0001 to 1;
                            default 0.02
 
@@ -107,7 +107,7 @@ constexpr OptionSpec kOptions[] = {
     {"--loop-nodes", "", "a node at every frame a loop names"},
     {"--robust-scales", "LIST", "Cauchy scales of the robust stages"},
     {"--no-robust", "", "plain least squares on the loops"},
-    {"--no-scale", "", "do not estimate the odometry's scale error"},
+    {"--estimate-scale", "", "also estimate the odometry's scale error"},
     {"--scale-prior", "SIGMA", "prior on the odometry's scale error"},
     {"--corrupt-loops", "F", "replace this share of loops by wrong ones"},
     {"--seed", "N", "seed of --corrupt-loops"},
@@ -156,7 +156,7 @@ void apply_option(std::string_view name, std::string_view value, Options& o) {
   if (name == "--loop-nodes") o.graph.loop_nodes = true;
   if (name == "--robust-scales") o.solver.robust_scales = scales_in(name, value);
   if (name == "--no-robust") o.solver.robust_scales = {};
-  if (name == "--no-scale") o.solver.estimate_scale = false;
+  if (name == "--estimate-scale") o.solver.estimate_scale = true;
   if (name == "--scale-prior") o.solver.scale_prior_sigma = number_in(name, value, 1e-4, 1);
   if (name == "--corrupt-loops") o.corrupt = number_in(name, value, 0, 1);
   if (name == "--seed") o.seed = parse_whole(name, std::string(value).c_str());
