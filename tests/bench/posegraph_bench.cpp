@@ -10,7 +10,8 @@
 //
 // By default the tool's defaults. --first solves the first version's graph
 // for comparison: a node every 2 m and at every loop frame, four robust
-// stages (100, 20, 5, 2) each to the final tolerance, SuiteSparse (loops
+// stages (100, 20, 5, 2) each to the final tolerance, SuiteSparse, no scale
+// estimate (loops
 // are still dropped between stages: --drop 0 turns that off too). The other
 // options change one setting each (see the usage line).
 #include <algorithm>
@@ -119,10 +120,11 @@ int main(int argc, char** argv) {
       config.solver.robust_scales = {100.0, 20.0, 5.0, 2.0};
       config.solver.early_function_tolerance = config.solver.function_tolerance;
       config.solver.sparse_library = SparseLibrary::kSuiteSparse;
+      config.solver.estimate_scale = false;
     } else if (std::strcmp(a, "--report") == 0) {
       config.report = true;
-    } else if (std::strcmp(a, "--estimate-scale") == 0) {
-      config.solver.estimate_scale = true;
+    } else if (std::strcmp(a, "--no-scale") == 0) {
+      config.solver.estimate_scale = false;
     } else if (std::strcmp(a, "--library") == 0 && has_value) {
       const char* l = argv[++i];
       config.solver.sparse_library = std::strcmp(l, "eigen") == 0         ? SparseLibrary::kEigen
@@ -140,7 +142,7 @@ int main(int argc, char** argv) {
       config.solver.early_function_tolerance = std::atof(argv[++i]);
     } else {
       std::fprintf(stderr,
-                   "usage: markloop-posegraph-bench [--first] [--estimate-scale] [--library "
+                   "usage: markloop-posegraph-bench [--first] [--no-scale] [--library "
                    "cx|eigen|suitesparse] [--loop-nodes] [--keyframe-spacing M] "
                    "[--robust-scales LIST] [--early-tolerance T] [--drop K] [--report]\n");
       return 2;

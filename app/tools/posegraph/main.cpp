@@ -30,8 +30,9 @@ constexpr const char* kUsage = R"(usage: markloop-posegraph --can-in FILE --can-
        markloop-posegraph --replay-jsonl FILE --poses FILE --out DIR [options]
 
 Builds a 2-D pose graph from the car's odometry and markloop's loop
-closures, optimises it with Ceres Solver (robust loss on the loops) and
-writes the trajectory before and after. With --truth it prints the
+closures, optimises it with Ceres Solver (robust loss on the loops, the
+odometry's scale error estimated too) and writes the trajectory before
+and after. With --truth it prints the
 absolute and relative trajectory errors before and after.
 
 input (the bus as recorded, candump -l logs on the recording's clock:
@@ -63,9 +64,9 @@ least the floor, heading the loop sigma):
                            loop sigmas, comma-separated, each 0.1 to 1e6;
                            default 100,2
   --no-robust              plain least squares on the loops (for comparison)
-  --estimate-scale         also estimate the odometry's scale error s (its
-                           translations scaled by 1 + s), after the robust
-                           stages, without the loops they rejected
+  --no-scale               do not estimate the odometry's scale error s (its
+                           translations scaled by 1 + s; estimated after the
+                           robust stages, without the loops they rejected)
   --scale-prior SIGMA      standard deviation of the prior on s, 0.0001 to 1;
                            default 0.02
 
@@ -107,7 +108,7 @@ constexpr OptionSpec kOptions[] = {
     {"--loop-nodes", "", "a node at every frame a loop names"},
     {"--robust-scales", "LIST", "Cauchy scales of the robust stages"},
     {"--no-robust", "", "plain least squares on the loops"},
-    {"--estimate-scale", "", "also estimate the odometry's scale error"},
+    {"--no-scale", "", "do not estimate the odometry's scale error"},
     {"--scale-prior", "SIGMA", "prior on the odometry's scale error"},
     {"--corrupt-loops", "F", "replace this share of loops by wrong ones"},
     {"--seed", "N", "seed of --corrupt-loops"},
@@ -156,7 +157,7 @@ void apply_option(std::string_view name, std::string_view value, Options& o) {
   if (name == "--loop-nodes") o.graph.loop_nodes = true;
   if (name == "--robust-scales") o.solver.robust_scales = scales_in(name, value);
   if (name == "--no-robust") o.solver.robust_scales = {};
-  if (name == "--estimate-scale") o.solver.estimate_scale = true;
+  if (name == "--no-scale") o.solver.estimate_scale = false;
   if (name == "--scale-prior") o.solver.scale_prior_sigma = number_in(name, value, 1e-4, 1);
   if (name == "--corrupt-loops") o.corrupt = number_in(name, value, 0, 1);
   if (name == "--seed") o.seed = parse_whole(name, std::string(value).c_str());

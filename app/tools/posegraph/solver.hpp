@@ -31,7 +31,7 @@ struct SolverOptions {
   double function_tolerance = 1e-6;
   // Estimate the odometry's scale error, with a prior of this standard
   // deviation on it.
-  bool estimate_scale = false;
+  bool estimate_scale = true;
   double scale_prior_sigma = 0.02;
   // Before a stage, a loop whose whitened residual exceeds this many of the
   // stage's Cauchy scales is removed from the problem (0: never).
