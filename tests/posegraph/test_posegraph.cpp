@@ -81,7 +81,7 @@ Corrected correct(const std::vector<Pose2>& odometry, const std::vector<LoopMeas
   const PoseGraph graph = build_graph(odometry, loops, options);
   Result<SolveReport> solved = optimise(graph, solver);
   REQUIRE(solved);
-  const std::vector<Pose2> after = frames_from_nodes(graph, solved->nodes, odometry);
+  const std::vector<Pose2> after = frames_from_nodes(graph, solved->nodes, odometry, solved->scale);
   return {trajectory_error(odometry, truth)->ate_rmse_m, trajectory_error(after, truth)->ate_rmse_m, *solved};
 }
 
@@ -128,6 +128,39 @@ TEST_CASE("a wrong loop does not bend the map") {
   CHECK(correct(odometry, loops, truth, plain).after_m > 5.0 * clean_m);
 }
 
+TEST_CASE("the scale estimate is not pulled by wrong loops when the odometry has no scale error") {
+  const Truth truth = circle_truth();
+  const std::vector<Pose2> odometry = odometry_of_circle(scratch("posegraph-scale"));
+  std::vector<LoopMeasurement> loops = corrupt_loops(true_loops(truth), 0.2, 1, truth.poses, 100.0);
+  SolverOptions solver;
+  solver.estimate_scale = true;
+  const Corrected c = correct(odometry, loops, truth, solver);
+  CHECK(std::abs(c.report.scale) < 0.002);
+  CHECK(c.after_m < 0.1 * c.before_m);
+}
+
+TEST_CASE("loop frames attached by the odometry correct as well as loop frames with nodes") {
+  const Truth truth = circle_truth();
+  const std::vector<Pose2> odometry = odometry_of_circle(scratch("posegraph-attached"));
+  GraphOptions options;
+  options.odometry.yaw_rate_error_dps = 0.3;
+  const std::vector<LoopMeasurement> loops = true_loops(truth);
+  double after_m[2];
+  for (const bool loop_nodes : {false, true}) {
+    options.loop_nodes = loop_nodes;
+    const PoseGraph graph = build_graph(odometry, loops, options);
+    const Result<SolveReport> solved = optimise(graph);
+    REQUIRE(solved);
+    after_m[loop_nodes ? 1 : 0] =
+        trajectory_error(frames_from_nodes(graph, solved->nodes, odometry), truth)->ate_rmse_m;
+    // The frames between nodes are placed without a jump.
+    const std::vector<Pose2> frames = frames_from_nodes(graph, solved->nodes, odometry);
+    for (std::size_t k = 1; k < frames.size(); ++k)
+      CHECK(std::hypot(frames[k].x - frames[k - 1].x, frames[k].y - frames[k - 1].y) < 1.5);
+  }
+  CHECK(after_m[0] < 1.2 * after_m[1] + 0.02);
+}
+
 TEST_CASE("bad input: a log cut mid-line is an error naming its line") {
   const auto dir = scratch("posegraph-cut");
   write_odometry(dir / "odometry.log");
@@ -166,14 +199,16 @@ TEST_CASE("command line: writes the trajectories and prints the ATE") {
     dbc::E2eSenderState sender;
     const Truth truth = circle_truth();
     double t = 60.0;
-    for (const LoopMeasurement& m : true_loops(truth))
+    for (const LoopMeasurement& m : true_loops(truth)) {
+      t += 0.1;
       eval::fixture::send_detection(log, sender, static_cast<std::uint8_t>(t), m.query, m.match, m.relative.x,
-                                    m.relative.y, m.relative.yaw * kDegreesPerRadian, t += 0.1);
+                                    m.relative.y, m.relative.yaw * kDegreesPerRadian, t);
+    }
     std::ofstream frames(dir / "frames.csv");
     frames << "frame,t,x,y,yaw\n";
     for (std::size_t k = 0; k < truth.poses.size(); ++k)
-      frames << k << ',' << k / kFpsHz << ',' << truth.poses[k].x << ',' << truth.poses[k].y << ','
-             << truth.poses[k].yaw << '\n';
+      frames << k << ',' << static_cast<double>(k) / kFpsHz << ',' << truth.poses[k].x << ','
+             << truth.poses[k].y << ',' << truth.poses[k].yaw << '\n';
   }
   const std::string run = std::string(MARKLOOP_POSEGRAPH_BIN) + " --can-in " +
                           (dir / "odometry.log").string() + " --can-out " + (dir / "ecu.log").string() +

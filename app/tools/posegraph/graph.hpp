@@ -1,7 +1,10 @@
-// The 2-D pose graph: a node per keyframe (one every few metres, and every
-// frame a loop names), odometry edges between successive nodes and loop
-// edges between a loop's two frames, each with a diagonal information in
-// the edge's own frame. Also the robustness experiment's wrong loops.
+// The 2-D pose graph: a node per keyframe (one every few metres driven),
+// odometry edges between successive nodes and loop edges between a loop's
+// two frames, each frame attached to its nearest keyframe by the odometry
+// between them (or, with loop_nodes, a node of its own); each edge has a
+// diagonal information in its own frame. The odometry's translations may be
+// scaled by (1 + s), s one extra unknown of the graph (the wheel-speed scale
+// error). Also the robustness experiment's wrong loops.
 #pragma once
 
 #include <array>
@@ -33,16 +36,25 @@ struct LoopNoise {
 };
 
 struct GraphOptions {
-  double keyframe_spacing_m = 2.0;  // 0: a node per frame
+  double keyframe_spacing_m = 10.0;  // 0: a node per frame
+  // Every frame a loop names gets a node of its own (the first version's
+  // graph); otherwise it is attached to its nearest keyframe.
+  bool loop_nodes = false;
   double fps = 10.0;
   OdometryNoise odometry;
   LoopNoise loop;
 };
 
+// Joins frame `from_offset` of node `from` (the odometry from that node's
+// frame to the edge's frame, whose translation is scaled with the rest of
+// the odometry) to frame `to_offset` of node `to`. An odometry edge has
+// identity offsets and scales its measured translation; a loop edge's
+// measured pose is not scaled.
 struct Edge {
   std::size_t from = 0, to = 0;              // node indices
   Pose2 measured;                            // `to` in the frame of `from`
   std::array<double, 3> sqrt_information{};  // 1 / sigma of x, y, yaw
+  Pose2 from_offset, to_offset;              // loop edges only
 };
 
 struct PoseGraph {
@@ -57,10 +69,12 @@ struct PoseGraph {
 PoseGraph build_graph(std::span<const Pose2> odometry, std::span<const LoopMeasurement> loops,
                       const GraphOptions& options);
 
-// A pose per frame from the optimised nodes: each frame keeps its odometry
-// offset from the node at or before it.
+// A pose per frame from the optimised nodes: a frame between two nodes is
+// placed from each by the odometry between them (its translation scaled by
+// 1 + scale), and the two placements blended by the frame's share of the
+// distance between the nodes, so the trajectory has no jump.
 std::vector<Pose2> frames_from_nodes(const PoseGraph& graph, std::span<const Pose2> nodes,
-                                     std::span<const Pose2> odometry);
+                                     std::span<const Pose2> odometry, double scale = 0.0);
 
 // Replaces round(fraction * loops) of the loops, chosen at random, by wrong
 // ones: a random pair of frames whose `places` (truth, else odometry) lie at

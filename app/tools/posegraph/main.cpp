@@ -30,8 +30,9 @@ constexpr const char* kUsage = R"(usage: markloop-posegraph --can-in FILE --can-
        markloop-posegraph --replay-jsonl FILE --poses FILE --out DIR [options]
 
 Builds a 2-D pose graph from the car's odometry and markloop's loop
-closures, optimises it with Ceres Solver (robust loss on the loops) and
-writes the trajectory before and after. With --truth it prints the
+closures, optimises it with Ceres Solver (robust loss on the loops, the
+odometry's scale error estimated too) and writes the trajectory before
+and after. With --truth it prints the
 absolute and relative trajectory errors before and after.
 
 input (the bus as recorded, candump -l logs on the recording's clock:
@@ -52,12 +53,22 @@ length d over dt seconds: along d * R + 0.01 m, heading DPS * dt, across
 d * heading / 2 + 0.01 m; of a loop edge: position its PoseResidual, at
 least the floor, heading the loop sigma):
   --keyframe-spacing M     a node every M metres driven (0: every frame),
-                           0 to 100; plus every frame a loop names; default 2
+                           0 to 100; default 10. A loop's frames are attached
+                           to their nearest nodes by the odometry between
+  --loop-nodes             every frame a loop names gets a node instead
   --odometry-scale-error R relative distance error, 0.0001 to 1; default 0.01
   --yaw-rate-error DPS     yaw-rate error in deg/s, 0.0001 to 10; default 0.05
   --loop-sigma-floor M     least position sigma of a loop, 0.001 to 10; default 0.05
   --loop-yaw-sigma DEG     heading sigma of a loop, 0.01 to 90; default 1
+  --robust-scales LIST     Cauchy scales of the robust stages on the loops, in
+                           loop sigmas, comma-separated, each 0.1 to 1e6;
+                           default 100,2
   --no-robust              plain least squares on the loops (for comparison)
+  --no-scale               do not estimate the odometry's scale error s (its
+                           translations scaled by 1 + s; estimated after the
+                           robust stages, without the loops they rejected)
+  --scale-prior SIGMA      standard deviation of the prior on s, 0.0001 to 1;
+                           default 0.02
 
 robustness experiment:
   --corrupt-loops F        replace the share F (0 to 1) of the loops, chosen at
@@ -94,7 +105,11 @@ constexpr OptionSpec kOptions[] = {
     {"--yaw-rate-error", "DPS", "yaw-rate error"},
     {"--loop-sigma-floor", "M", "least position sigma of a loop"},
     {"--loop-yaw-sigma", "DEG", "heading sigma of a loop"},
+    {"--loop-nodes", "", "a node at every frame a loop names"},
+    {"--robust-scales", "LIST", "Cauchy scales of the robust stages"},
     {"--no-robust", "", "plain least squares on the loops"},
+    {"--no-scale", "", "do not estimate the odometry's scale error"},
+    {"--scale-prior", "SIGMA", "prior on the odometry's scale error"},
     {"--corrupt-loops", "F", "replace this share of loops by wrong ones"},
     {"--seed", "N", "seed of --corrupt-loops"},
     {"--out", "DIR", "output folder"},
@@ -103,7 +118,7 @@ constexpr OptionSpec kOptions[] = {
 struct Options {
   std::string can_in, can_out, replay_jsonl, poses, truth, out;
   GraphOptions graph;
-  bool robust = true;
+  SolverOptions solver;
   double corrupt = 0.0;
   unsigned seed = 1;
 };
@@ -113,6 +128,16 @@ double number_in(std::string_view name, std::string_view value, double low, doub
   if (!(v >= low && v <= high))
     fail(std::string(name) + " must lie in " + std::to_string(low) + " to " + std::to_string(high));
   return v;
+}
+
+std::vector<double> scales_in(std::string_view name, std::string_view list) {
+  std::vector<double> scales;
+  while (true) {
+    const std::size_t comma = list.find(',');
+    scales.push_back(number_in(name, list.substr(0, comma), 0.1, 1e6));
+    if (comma == std::string_view::npos) return scales;
+    list.remove_prefix(comma + 1);
+  }
 }
 
 void apply_option(std::string_view name, std::string_view value, Options& o) {
@@ -129,7 +154,11 @@ void apply_option(std::string_view name, std::string_view value, Options& o) {
   if (name == "--yaw-rate-error") o.graph.odometry.yaw_rate_error_dps = number_in(name, value, 1e-4, 10);
   if (name == "--loop-sigma-floor") o.graph.loop.floor_m = number_in(name, value, 1e-3, 10);
   if (name == "--loop-yaw-sigma") o.graph.loop.yaw_deg = number_in(name, value, 0.01, 90);
-  if (name == "--no-robust") o.robust = false;
+  if (name == "--loop-nodes") o.graph.loop_nodes = true;
+  if (name == "--robust-scales") o.solver.robust_scales = scales_in(name, value);
+  if (name == "--no-robust") o.solver.robust_scales = {};
+  if (name == "--no-scale") o.solver.estimate_scale = false;
+  if (name == "--scale-prior") o.solver.scale_prior_sigma = number_in(name, value, 1e-4, 1);
   if (name == "--corrupt-loops") o.corrupt = number_in(name, value, 0, 1);
   if (name == "--seed") o.seed = parse_whole(name, std::string(value).c_str());
 }
@@ -226,8 +255,11 @@ void print_solve(const PoseGraph& g, const SolveReport& s, std::span<const LoopM
     wrong += loops[i].corrupted ? 1 : 0;
     wrong_rejected += loops[i].corrupted && s.loop_rejected[i] ? 1 : 0;
   }
-  std::printf("solver: %.3f s, %d iterations%s; %zu loop edges rejected by the robust loss", s.seconds,
-              s.iterations, s.converged ? "" : " (a stage stopped before converging)", s.loops_rejected);
+  std::printf(
+      "solver: %.3f s, %d iterations%s; odometry scale error %+.4f; %zu loop edges rejected by the "
+      "robust loss",
+      s.seconds, s.iterations, s.converged ? "" : " (a stage stopped before converging)", s.scale,
+      s.loops_rejected);
   if (wrong > 0) std::printf(" (%zu of the %zu wrong ones)", wrong_rejected, wrong);
   std::printf("\n");
 }
@@ -284,11 +316,9 @@ int main(int argc, char** argv) {
   load_inputs(r);
   corrupt(r);
   const PoseGraph graph = build_graph(r.odometry, r.loops.loops, r.o.graph);
-  SolverOptions solver;
-  if (!r.o.robust) solver.robust_scales = {};
-  const SolveReport solved = or_fail(optimise(graph, solver));
+  const SolveReport solved = or_fail(optimise(graph, r.o.solver));
   print_solve(graph, solved, r.loops.loops);
-  const std::vector<Pose2> after = frames_from_nodes(graph, solved.nodes, r.odometry);
+  const std::vector<Pose2> after = frames_from_nodes(graph, solved.nodes, r.odometry, solved.scale);
   write_outputs(r, after, solved);
   if (r.truth) {
     const auto before_error = trajectory_error(r.odometry, *r.truth);
