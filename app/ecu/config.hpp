@@ -73,6 +73,8 @@ inline EngineConfig ecu_engine_defaults() {
   c.match.confirm_loaded_places = true;
   c.match.place_landmarks = 3;
   c.match.far_run_m = 300.0;
+  c.match.place_within_m = 2000.0;
+  c.match.place_min_bits = 4.0;
   return c;
 }
 

@@ -413,7 +413,7 @@ constexpr Setting kSettings[] = {
      .unit = "m",
      .section = S::kEngine,
      .description = "two visits of a place further apart along the drive than this: the odometry "
-                    "prior admits too much of the map; places are not matched that far back"},
+                    "prior admits too much of the map"},
     {.key = "engine.far_run_m",
      .kind = K::kReal,
      .member = member([](auto& c) -> auto& { return c.engine.match.far_run_m; }),
@@ -434,6 +434,25 @@ constexpr Setting kSettings[] = {
                     "any order, with landmarks stored where the odometry puts the car close a loop "
                     "(a turn into an old road, the other direction); 0: off, the sequences alone; "
                     "else 2 or more"},
+    {.key = "engine.place_within_m",
+     .kind = K::kReal,
+     .member = member([](auto& c) -> auto& { return c.engine.match.place_within_m; }),
+     .min = 0.0,
+     .max = 1.0e6,
+     .unit = "m",
+     .section = S::kEngine,
+     .description = "places are matched only between visits at most this far apart along the drive "
+                    "(further, the drift limits admit look-alikes)"},
+    {.key = "engine.place_min_bits",
+     .kind = K::kReal,
+     .member = member([](auto& c) -> auto& { return c.engine.match.place_min_bits; }),
+     .min = 0.0,
+     .max = 1000.0,
+     .unit = "bits",
+     .section = S::kEngine,
+     .description = "a place's labels must be rare enough: the sum over its markings of -log2 of "
+                    "their label's share of the landmarks seen (crosswalks and stop lines, at every "
+                    "intersection, say little); 0: any labels"},
     {.key = "engine.place_window_m",
      .kind = K::kReal,
      .member = member([](auto& c) -> auto& { return c.engine.match.place_window_m; }),

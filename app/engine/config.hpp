@@ -89,8 +89,7 @@ struct MatchConfig {
   // admits too much of the map to tell look-alike places apart: a sequence
   // match is only sent once the run of matches continuing it spans far_run_m
   // of the drive (more than one intersection's markings, which look alike
-  // everywhere); 0: no such wait. Places (below) are never matched that far
-  // back.
+  // everywhere); 0: no such wait.
   double far_after_m = 2500.0;
   double far_run_m = 0.0;
   // Place matching (app/engine/place_matcher.hpp), beside the sequences: when
@@ -104,6 +103,12 @@ struct MatchConfig {
   double place_window_m = 60.0;
   double place_search_m = 40.0;
   double place_distinct_m = 150.0;
+  // A place's labels must be rare enough: the sum over its pairs of -log2
+  // of each label's share of the landmarks seen so far (0: any labels).
+  double place_min_bits = 0.0;
+  // Places are matched only where the two visits lie at most this far apart
+  // along the drive: further, the drift limits admit look-alikes.
+  double place_within_m = 2500.0;
 };
 
 struct DatabaseConfig {

@@ -38,6 +38,20 @@ void PlaceMatcher::remember(const Landmark& landmark) {
     recent_.erase_at(0);
   if (recent_.full()) recent_.erase_at(0);
   (void)recent_.push_back(landmark);
+  ++label_counts_[landmark.label % kLabelBuckets];
+  ++landmarks_seen_;
+}
+
+double PlaceMatcher::evidence_bits(const Hypothesis& h) const {
+  // How rarely the paired labels occur among the landmarks seen so far: two
+  // crosswalks and a stop line, at every intersection, say little; a speed
+  // number beside them says more.
+  double bits = 0.0;
+  for (const Pair& p : h.pairs) {
+    const double count = static_cast<double>(label_counts_[p.query->label % kLabelBuckets]);
+    bits += std::log2((static_cast<double>(landmarks_seen_) + 1.0) / (count + 1.0));
+  }
+  return bits;
 }
 
 bool PlaceMatcher::old_enough(const Landmark& stored, const Landmark& query) const {
@@ -84,6 +98,10 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
       best = i;
   }
   if (best == found) return false;
+  if (evidence_bits(hypotheses_[best]) < config_.place_min_bits) {
+    ++counters_.too_common;
+    return false;
+  }
   // ...with no plausible rival: another visit of the same place agrees.
   for (std::size_t i = 0; i < found; ++i) {
     if (plausible(hypotheses_[i]) && disagree(hypotheses_[i], hypotheses_[best])) {
@@ -185,7 +203,7 @@ bool PlaceMatcher::beyond_prior(const Hypothesis& h) const {
   const double allowed =
       std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * h.driven_m);
   const double turned = std::abs(h.fit.transform.yaw) * 180.0 / std::numbers::pi;
-  return h.driven_m > config_.far_after_m || apart(h) > allowed ||
+  return h.driven_m > config_.place_within_m || apart(h) > allowed ||
          turned > config_.max_drift_yaw_abs_deg + config_.max_drift_yaw_rel_deg_per_m * h.driven_m;
 }
 

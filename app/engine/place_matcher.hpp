@@ -35,6 +35,7 @@ struct PlaceCounters {
   std::uint64_t rejected_residual = 0;
   std::uint64_t rejected_drift = 0;  // beyond the odometry prior
   std::uint64_t ambiguous = 0;       // another alignment fitted as well
+  std::uint64_t too_common = 0;      // labels too common to tell the place (place_min_bits)
   std::uint64_t matches = 0;
 };
 
@@ -86,12 +87,19 @@ class PlaceMatcher {
   // Whether two hypotheses' anchors are different places, not two visits of one.
   bool disagree(const Hypothesis& a, const Hypothesis& b) const;
   void fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const;
+  // Sum over the pairs of -log2 of their label's share of the landmarks seen.
+  double evidence_bits(const Hypothesis& h) const;
 
   MatchConfig config_;
   FixedVector<Landmark, kMaxRecent> recent_;  // oldest first; the newest last
   static constexpr std::size_t kMaxHypotheses = 16;
   std::array<Hypothesis, kMaxHypotheses> hypotheses_{};
   PlaceCounters counters_;
+  // Landmarks seen per label (labels share a bucket beyond 64: a shared
+  // bucket only makes its labels look commoner).
+  static constexpr std::size_t kLabelBuckets = 64;
+  std::array<std::uint64_t, kLabelBuckets> label_counts_{};
+  std::uint64_t landmarks_seen_ = 0;
 };
 
 }  // namespace markloop

@@ -67,6 +67,10 @@ const char* validate(const EngineConfig& c) {
   if (c.match.place_landmarks != 0 &&
       (c.match.place_landmarks < kMinSequenceLength || c.match.place_landmarks > kMaxSequenceLength))
     return "place landmarks must be 0 (off) or between 2 and 10";
+  if (!finite_non_negative(c.match.place_within_m))
+    return "place distance along the drive must be non-negative";
+  if (!finite_non_negative(c.match.place_min_bits) || c.match.place_min_bits > 1000.0)
+    return "place evidence must lie between 0 and 1000 bits";
   if (!finite_positive(c.match.place_window_m) || !finite_positive(c.match.place_search_m))
     return "place window and search distance must be positive numbers of metres";
   if (!finite_positive(c.match.place_distinct_m) || c.match.place_distinct_m > 10000.0)

@@ -77,9 +77,15 @@ engine (each value must lie in the range given):
                          default 40
   --place-distinct M     no other place within this distance may fit as
                          well, 1 to 10000 m; default 150
+  --place-within M       places are matched only between visits at most this
+                         far apart along the drive, 0 to 1000000 m; default
+                         2500
+  --place-bits B         a place's labels must be rare enough: the sum of
+                         -log2 of each label's share of the landmarks seen,
+                         0 to 1000; default 0 (any labels)
   --far-after M          visits further apart along the drive than this, 0
-                         to 1000000 m, need a longer run (--far-run); places
-                         are not matched that far back; default 2500
+                         to 1000000 m, need a longer run (--far-run); default
+                         2500
   --far-run M            ... the run of matches continuing such a match must
                          span this much of the drive, 0 to 100000 m; default 0
   --max-drift-rel R      odometry prior: two visits of a place lie at most
@@ -159,6 +165,8 @@ constexpr OptionSpec kOptions[] = {
     {"--place", "N", "place matching: N landmarks agreeing in any order"},
     {"--place-search", "M", "largest drift a place match allows"},
     {"--place-distinct", "M", "no other place within this distance may fit as well"},
+    {"--place-within", "M", "places only between visits this close along the drive"},
+    {"--place-bits", "B", "least evidence of a place's labels, in bits"},
     {"--far-after", "M", "visits this far apart need a longer run"},
     {"--far-run", "M", "the run such a match needs"},
     {"--max-drift-rel", "R", "odometry prior, share of the distance driven"},
@@ -238,12 +246,16 @@ constexpr NumericOption kNumericOptions[] = {
     {"--place-distinct",
      {1.0, 10000.0, "metres", false},
      [](Options& o, double v) { o.engine.match.place_distinct_m = v; }},
+    {"--place-within",
+     {0.0, 1e6, "metres", false},
+     [](Options& o, double v) { o.engine.match.place_within_m = v; }},
+    {"--place-bits",
+     {0.0, 1000.0, "", false},
+     [](Options& o, double v) { o.engine.match.place_min_bits = v; }},
     {"--far-after",
      {0.0, 1e6, "metres", false},
      [](Options& o, double v) { o.engine.match.far_after_m = v; }},
-    {"--far-run",
-     {0.0, 1e5, "metres", false},
-     [](Options& o, double v) { o.engine.match.far_run_m = v; }},
+    {"--far-run", {0.0, 1e5, "metres", false}, [](Options& o, double v) { o.engine.match.far_run_m = v; }},
     {"--max-drift-rel",
      {0.0, 1.0, "", false},
      [](Options& o, double v) { o.engine.match.max_drift_rel = v; }},
@@ -576,10 +588,10 @@ void print_counters(const Replay& r, const ReplayResult& result, unsigned k) {
   if (p.queries > 0)
     std::printf(
         "markloop-replay: places: %llu queries, %llu hypotheses (%llu with too few pairs, %llu failed the "
-        "rigid fit), %llu beyond the drift limits, %llu ambiguous, %llu matches\n",
+        "rigid fit), %llu beyond the drift limits, %llu ambiguous, %llu too common, %llu matches\n",
         (unsigned long long)p.queries, (unsigned long long)p.hypotheses, (unsigned long long)p.too_few_pairs,
         (unsigned long long)p.rejected_residual, (unsigned long long)p.rejected_drift,
-        (unsigned long long)p.ambiguous, (unsigned long long)p.matches);
+        (unsigned long long)p.ambiguous, (unsigned long long)p.too_common, (unsigned long long)p.matches);
   if (c.matches_held_far > 0)
     std::printf("markloop-replay: %llu sequence matches held back (visits far apart, run too short)\n",
                 (unsigned long long)c.matches_held_far);
