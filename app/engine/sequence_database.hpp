@@ -156,7 +156,7 @@ class SequenceDatabase {
   };
 
   // Side of the ground cells of the landmark index, metres.
-  static constexpr double kCell_m = 40.0;
+  static constexpr double kCell_m = 64.0;
   static std::int64_t cell_of(double coordinate) {
     return static_cast<std::int64_t>(std::floor(coordinate / kCell_m));
   }

@@ -1,6 +1,7 @@
 // Proves the engine does not touch the heap after construction: every global
 // operator new is counted while the engine processes a long drive.
 #include <catch2/catch_test_macros.hpp>
+#include <catch2/generators/catch_generators.hpp>
 
 #include <memory>
 
@@ -20,11 +21,18 @@ struct CountingSink final : MatchSink {
 }  // namespace
 
 TEST_CASE("no heap allocation after start-up over a 60 km drive", "[engine][memory]") {
+  const bool places = GENERATE(false, true);
+  INFO("place matching " << (places ? "on" : "off"));
   const auto scenario = sim::make_scenario("long", 3);
   REQUIRE(scenario);
   sim::Drive drive(*scenario, sim::DriveConfig{}, 9);
 
   EngineConfig config;
+  if (places) {
+    config.match.place_landmarks = 3;
+    config.match.place_min_bits = 4;
+    config.match.far_run_m = 300;
+  }
   // Small enough that both rings wrap many times during the drive.
   config.database.landmark_capacity = 512;
   config.database.sequence_capacity = 4096;  // about k sequences per landmark
@@ -50,6 +58,8 @@ TEST_CASE("no heap allocation after start-up over a 60 km drive", "[engine][memo
   CHECK(frames >= 50000);
   CHECK(allocations == 0);
   CHECK(sink.matches > 100);
+  if (places) CHECK(engine->place_counters().queries > 50);
+  if (places) CHECK(engine->place_counters().hypotheses > 0);
   const DatabaseStats stats = engine->database().stats();
   CHECK(stats.sequences_evicted > 1000);
   CHECK(stats.landmarks_evicted > 1000);
