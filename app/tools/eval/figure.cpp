@@ -221,7 +221,7 @@ void svg_legend(std::FILE* f, const Layout& layout, const std::vector<WorldMarki
     y += 20;
   };
   legend_line(kRoute, "route (truth)");
-  if (corrected) legend_line(kCorrected, "corrected (pose graph)");
+  if (corrected) legend_line(kCorrected, "pose graph");
   legend_line(kCorrect, "correct loop");
   legend_line(kWrong, "wrong loop");
   y += 6;
@@ -281,7 +281,7 @@ void png_legend(cv::Mat& image, const Layout& layout, const std::vector<WorldMar
     y += 20;
   };
   legend_line(kRoute, "route (truth)");
-  if (corrected) legend_line(kCorrected, "corrected (pose graph)");
+  if (corrected) legend_line(kCorrected, "pose graph");
   legend_line(kCorrect, "correct loop");
   legend_line(kWrong, "wrong loop");
   y += 6;
