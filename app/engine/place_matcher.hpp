@@ -7,7 +7,9 @@
 //   newest landmark -> stored landmarks of its label near it (hypotheses)
 //     -> each hypothesis predicts where the other recent landmarks lie in the
 //        stored map; those found there (same label) are its pairs
-//     -> rigid fit of the pairs; odometry prior on the fitted drift
+//     -> rigid fit of the pairs; odometry prior on the fitted drift; the
+//        two visits at most `place_within_m` apart along the drive; labels
+//        rare enough (`place_min_bits`)
 //     -> a match only when no other place that the odometry could put the
 //        car at (a few times the drift limits, within `place_distinct_m`)
 //        fits as well: a constellation repeated nearby (the same
