@@ -205,3 +205,31 @@ TEST_CASE("place matching settings are checked", "[engine][place]") {
   config.match.place_window_m = 0;
   CHECK(validate(config) != nullptr);
 }
+
+TEST_CASE("a sequence match between visits far apart waits for a longer run", "[engine][far]") {
+  const std::vector<Mark> world = town();
+  const auto first_loop_x = [&](double far_run_m, std::uint64_t& held) {
+    EngineConfig config = place_config(0);
+    config.match.far_after_m = 200.0;
+    config.match.far_run_m = far_run_m;
+    SequenceEngine engine(config);
+    Car car(engine, world);
+    car.drive({{0, 0}, {330, 0}, {330, -300}, {0, -300}, {0, 0}, {330, 0}});
+    engine.flush(car.sink);
+    held = engine.counters().matches_held_far;
+    CHECK(judge(car, car.sink.events).wrong == 0);
+    REQUIRE(!car.sink.events.empty());
+    const MatchEvent& first = car.sink.events[0];
+    return static_cast<double>(first.query[first.k - 1].x);
+  };
+  std::uint64_t held_at_once = 0, held_for_run = 0;
+  const double at_once = first_loop_x(0.0, held_at_once);
+  const double after_run = first_loop_x(60.0, held_for_run);
+  CHECK(held_at_once == 0);
+  CHECK(held_for_run >= 1);
+  // The first markings are 57, 80, 99 and 128 m along: the run from 57 m
+  // spans 60 m only at the fifth.
+  CHECK(at_once < 110.0);
+  CHECK(after_run > at_once);
+  CHECK(after_run - 57.0 >= 60.0);
+}
