@@ -111,6 +111,15 @@ struct MatchConfig {
   double place_within_m = 2500.0;
 };
 
+// What the odometry can have drifted over `driven_m` of driving, by the
+// drift limits of `c`: metres apart, and degrees turned.
+inline double drift_allowed_m(const MatchConfig& c, double driven_m) {
+  return c.max_drift_abs_m + c.max_drift_rel * driven_m;
+}
+inline double drift_allowed_deg(const MatchConfig& c, double driven_m) {
+  return c.max_drift_yaw_abs_deg + c.max_drift_yaw_rel_deg_per_m * driven_m;
+}
+
 struct DatabaseConfig {
   std::size_t landmark_capacity = std::size_t{1} << 18;
   std::size_t sequence_capacity = std::size_t{1} << 20;

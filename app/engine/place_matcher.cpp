@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 
+#include "app/common/units.hpp"
 #include "app/engine/sequence_engine.hpp"
 
 namespace markloop {
@@ -196,15 +196,14 @@ double PlaceMatcher::apart(const Hypothesis& h) {
 }
 
 bool PlaceMatcher::plausible(const Hypothesis& h) const {
-  return apart(h) <= kRivalSlack * (config_.max_drift_abs_m + config_.max_drift_rel * h.driven_m);
+  return apart(h) <= kRivalSlack * drift_allowed_m(config_, h.driven_m);
 }
 
 bool PlaceMatcher::beyond_prior(const Hypothesis& h) const {
-  const double allowed =
-      std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * h.driven_m);
-  const double turned = std::abs(h.fit.transform.yaw) * 180.0 / std::numbers::pi;
+  const double allowed = std::min(config_.place_search_m, drift_allowed_m(config_, h.driven_m));
+  const double turned = std::abs(h.fit.transform.yaw) * kDegreesPerRadian;
   return h.driven_m > config_.place_within_m || apart(h) > allowed ||
-         turned > config_.max_drift_yaw_abs_deg + config_.max_drift_yaw_rel_deg_per_m * h.driven_m;
+         turned > drift_allowed_deg(config_, h.driven_m);
 }
 
 bool PlaceMatcher::disagree(const Hypothesis& a, const Hypothesis& b) const {
@@ -215,10 +214,9 @@ bool PlaceMatcher::disagree(const Hypothesis& a, const Hypothesis& b) const {
   const Landmark& anchor_a = *a.pairs[0].stored;
   const Landmark& anchor_b = *b.pairs[0].stored;
   const double driven = std::abs(anchor_a.station - anchor_b.station);
-  const double drifted =
-      driven <= config_.place_window_m
-          ? 0.0
-          : std::min(config_.place_search_m, config_.max_drift_abs_m + config_.max_drift_rel * driven);
+  const double drifted = driven <= config_.place_window_m
+                             ? 0.0
+                             : std::min(config_.place_search_m, drift_allowed_m(config_, driven));
   return (point(anchor_a) - point(anchor_b)).norm() > drifted + kDistinct_m;
 }
 

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 
+#include "app/common/units.hpp"
 #include "app/engine/rigid_alignment.hpp"
 
 namespace markloop {
@@ -244,9 +245,7 @@ void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
 void SequenceEngine::match_place(MatchSink& sink) {
   if (!places_.enabled() || !places_.match(database_, best_)) return;
   set_relative_pose(best_);
-  const double limit = config_.match.max_frame_distance_m;
-  if (limit > 0.0 && best_.has_relative_pose &&
-      std::hypot(best_.relative_pose.x, best_.relative_pose.y) > limit) {
+  if (frames_too_far_apart(best_.has_relative_pose ? std::optional(best_.relative_pose) : std::nullopt)) {
     ++counters_.candidates_rejected_frames_apart;
     return;
   }
@@ -347,10 +346,9 @@ bool SequenceEngine::agrees(const Pose2& transform, const Eigen::Vector2d& from,
   const double c = std::cos(transform.yaw), s = std::sin(transform.yaw);
   const Eigen::Vector2d predicted(transform.x + c * from.x() - s * from.y(),
                                   transform.y + s * from.x() + c * from.y());
-  const double turned = std::abs(wrap_angle(yaw - transform.yaw)) * 180.0 / 3.14159265358979323846;
+  const double turned = std::abs(wrap_angle(yaw - transform.yaw)) * kDegreesPerRadian;
   driven = std::max(driven, 0.0);
-  return (predicted - to).norm() <= mc.max_drift_abs_m + mc.max_drift_rel * driven &&
-         turned <= mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven;
+  return (predicted - to).norm() <= drift_allowed_m(mc, driven) && turned <= drift_allowed_deg(mc, driven);
 }
 
 bool SequenceEngine::match(std::span<const LandmarkId> query, const SequenceShape& shape,
@@ -443,13 +441,16 @@ void SequenceEngine::measure_candidate(const Query& query, std::span<const Landm
 }
 
 bool SequenceEngine::frames_too_far_apart(const Query& query, const Candidate& candidate) const {
-  const double limit = config_.match.max_frame_distance_m;
-  if (limit <= 0.0) return false;
-  // The loop's two frames, as far apart as its relative pose says.
+  if (config_.match.max_frame_distance_m <= 0.0) return false;
   const unsigned k = config_.chain.k;
-  const std::optional<Pose2> relative =
-      relative_car_pose(candidate.fit.transform, query.last(), *database_.landmark(candidate.ids[k - 1]));
-  return relative && std::hypot(relative->x, relative->y) > limit;
+  return frames_too_far_apart(
+      relative_car_pose(candidate.fit.transform, query.last(), *database_.landmark(candidate.ids[k - 1])));
+}
+
+bool SequenceEngine::frames_too_far_apart(const std::optional<Pose2>& relative) const {
+  // The loop's two frames, as far apart as its relative pose says.
+  const double limit = config_.match.max_frame_distance_m;
+  return limit > 0.0 && relative && std::hypot(relative->x, relative->y) > limit;
 }
 
 bool SequenceEngine::accept_into_loaded_map(const Query& query, const Candidate& candidate) {
@@ -590,9 +591,8 @@ bool SequenceEngine::beyond_odometry_prior(const Query& query, const Candidate& 
   }
   const double driven = query.first().station - database_.landmark(candidate.ids[k - 1])->station;
   const double apart = (query_centre - candidate_centre).norm() / k;
-  const double turned = std::abs(candidate.fit.transform.yaw) * 180.0 / 3.14159265358979323846;
-  return apart > mc.max_drift_abs_m + mc.max_drift_rel * driven ||
-         turned > mc.max_drift_yaw_abs_deg + mc.max_drift_yaw_rel_deg_per_m * driven;
+  const double turned = std::abs(candidate.fit.transform.yaw) * kDegreesPerRadian;
+  return apart > drift_allowed_m(mc, driven) || turned > drift_allowed_deg(mc, driven);
 }
 
 double SequenceEngine::score_of(const Candidate& candidate) const {

@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 
 #include "app/common/fixed_vector.hpp"
@@ -187,6 +188,9 @@ class SequenceEngine {
   // Fills the candidate's points and its distance error.
   void measure_candidate(const Query& query, std::span<const LandmarkId> ids, Candidate& candidate) const;
   bool frames_too_far_apart(const Query& query, const Candidate& candidate) const;
+  // A loop's two frames further apart than max_frame_distance_m by its
+  // relative pose (none: unknown, not too far).
+  bool frames_too_far_apart(const std::optional<Pose2>& relative) const;
   // A candidate in a loaded map (no odometry prior): true once it continues
   // a verified sequence and its alignment is confirmed.
   bool accept_into_loaded_map(const Query& query, const Candidate& candidate);

@@ -3,8 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <numbers>
 #include <unordered_map>
+
+#include "app/common/units.hpp"
 
 namespace markloop::replay {
 
@@ -22,7 +23,7 @@ std::vector<double> travelled_distances(std::span<const Pose2> poses) {
 
 // The kind of a frame near an older one with heading difference `yaw_a - yaw_b`.
 RevisitKind kind_of_heading(double yaw_a, double yaw_b) {
-  const double difference_deg = std::abs(wrap_angle(yaw_a - yaw_b)) * 180.0 / std::numbers::pi;
+  const double difference_deg = std::abs(wrap_angle(yaw_a - yaw_b)) * kDegreesPerRadian;
   if (difference_deg <= kAlongRoadTolerance_deg) return RevisitKind::SameDirection;
   if (difference_deg >= 180.0 - kAlongRoadTolerance_deg) return RevisitKind::OppositeDirection;
   return RevisitKind::Crossing;

@@ -4,8 +4,9 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
-#include <numbers>
 #include <unordered_map>
+
+#include "app/common/units.hpp"
 
 namespace markloop::replay {
 
@@ -73,7 +74,7 @@ Pose2 TruthJudge::true_relative_pose(const FramePair& pair) const {
 PoseError TruthJudge::pose_error(const FramePair& pair, const Pose2& estimate) const {
   const Pose2 truth_relative = true_relative_pose(pair);
   return {std::hypot(estimate.x - truth_relative.x, estimate.y - truth_relative.y),
-          std::abs(wrap_angle(estimate.yaw - truth_relative.yaw)) * 180.0 / std::numbers::pi};
+          std::abs(wrap_angle(estimate.yaw - truth_relative.yaw)) * kDegreesPerRadian};
 }
 
 Evaluation TruthJudge::evaluate(const std::vector<FramePair>& pairs,
