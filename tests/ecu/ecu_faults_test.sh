@@ -1,27 +1,17 @@
 #!/usr/bin/env bash
 # The ECU against damaged, hostile and careless inputs in file mode: every
 # rejection names the file (and line), the map is never lost or damaged,
-# SIGTERM ends a run blocked on a stalled pipe, and failed writes are not
-# reported as success. Arguments: a scratch dir, then the command that runs
+# and failed writes are not reported as success (ecu_stop_test.sh: SIGTERM
+# on a stalled pipe). Arguments: a scratch dir, then the command that runs
 # markloop (a cross build puts its emulator in front).
 set -euo pipefail
 work=$1; shift
 ecu=("$@")
 rm -rf "$work" && mkdir -p "$work"
 source "$(dirname "$0")/../cli_check.sh"
+source "$(dirname "$0")/recording.sh"
 cd "$work"
 
-# A recording markloop accepts: blank 1280x512 frames at 10 fps and a CAN log
-# of frames it does not receive (no odometry is needed to exercise the files).
-frame_bytes=$((1280 * 512))
-make_video() {  # make_video FILE FRAMES [HEADER]
-  local header=${3:-"YUV4MPEG2 W1280 H512 F10:1 Ip A1:1 Cmono"} i
-  { echo "$header"; for ((i = 0; i < $2; i++)); do echo FRAME; head -c "$frame_bytes" /dev/zero; done; } >"$1"
-}
-make_log() {  # make_log FILE LINES: one foreign frame every 50 ms
-  local i
-  for ((i = 0; i < $2; i++)); do printf '(%010d.%06d) vcan0 7FF#00\n' $((i / 20)) $((i % 20 * 50000)); done >"$1"
-}
 make_video frames.y4m 6
 make_log can.log 11  # 0 to 0.5 s, as the frames
 run=("${ecu[@]}" --camera-file frames.y4m --can-in can.log --quiet)
@@ -134,39 +124,5 @@ check "summary to /dev/full" 1 "^markloop: /dev/full: cannot write the summary: 
 check "summary to a directory" 1 "^markloop: $work: cannot write the summary: Is a directory" -- \
   "${run[@]}" --summary "$work"
 check "CAN output to /dev/full" 1 "^markloop: /dev/full: No space left on device" -- "${run[@]}" --can-out /dev/full
-
-# --- SIGTERM ends a run blocked on a stalled pipe, with the map saved ----------
-# limit_ms: 100 natively; an emulator (cross builds) or a sanitizer's exit
-# checks (MARKLOOP_STOP_LIMIT_MS, set by the build) add their own time.
-limit_ms=${MARKLOOP_STOP_LIMIT_MS:-100}
-[ ${#ecu[@]} -gt 1 ] && limit_ms=1000
-stalled() {  # stalled NAME INPUT_OPTION...: the pipe holds a little, then nothing
-  local name=$1; shift
-  rm -f stalled.map
-  "${ecu[@]}" --quiet --map stalled.map "$@" &
-  local pid=$!
-  sleep 2
-  local start end status=0
-  start=$(date +%s%N)
-  kill -TERM "$pid"
-  wait "$pid" || status=$?
-  end=$(date +%s%N)
-  local ms=$(((end - start) / 1000000))
-  if [ "$status" != 0 ] || [ "$ms" -gt "$limit_ms" ] || [ ! -s stalled.map ]; then
-    echo "FAIL $name: status $status after $ms ms (limit $limit_ms), map $(stat -c %s stalled.map 2>/dev/null || echo missing)"
-    failures=$((failures + 1))
-  else
-    echo "ok   $name: stopped $ms ms after SIGTERM, map saved"
-  fi
-}
-mkfifo camera.fifo can.fifo
-(head -c $((41 + 3 * (frame_bytes + 6))) frames.y4m; exec sleep 30) >camera.fifo &
-writer=$!
-stalled "SIGTERM while the camera pipe stalls" --camera-file camera.fifo --can-in can.log
-kill "$writer" 2>/dev/null || true
-(head -5 can.log; exec sleep 30) >can.fifo &
-writer=$!
-stalled "SIGTERM while the CAN pipe stalls" --camera-file frames.y4m --can-in can.fifo
-kill "$writer" 2>/dev/null || true
 
 finish
