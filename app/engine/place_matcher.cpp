@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "app/common/units.hpp"
 #include "app/engine/sequence_engine.hpp"
@@ -220,14 +221,35 @@ bool PlaceMatcher::disagree(const Hypothesis& a, const Hypothesis& b) const {
   return (point(anchor_a) - point(anchor_b)).norm() > drifted + kDistinct_m;
 }
 
+std::size_t PlaceMatcher::closest_cars(const Hypothesis& h) {
+  // An intersection approached from two directions: the cars pass one
+  // crosswalk a street's width apart, another side by side.
+  std::size_t closest = 0;
+  double closest_sq = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < h.pairs.size(); ++i) {
+    const Landmark& q = *h.pairs[i].query;
+    const Landmark& s = *h.pairs[i].stored;
+    if (!q.has_car_pose || !s.has_car_pose) continue;
+    const Pose2 stored_car = compose(h.fit.transform, Pose2{s.car_x, s.car_y, s.car_yaw});
+    const double d_sq =
+        (Eigen::Vector2d(q.car_x, q.car_y) - Eigen::Vector2d(stored_car.x, stored_car.y)).squaredNorm();
+    if (d_sq < closest_sq) closest = i, closest_sq = d_sq;
+  }
+  return closest;
+}
+
 void PlaceMatcher::fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const {
-  // Oldest query landmark first; the newest (pair 0) last, as a sequence's.
+  // Oldest query landmark first, as a sequence's; last the pair whose two
+  // cars were closest, so that the loop names frames at one place.
   std::array<Pair, kMaxSequenceLength> ordered{};
   const std::size_t n = h.pairs.size();
-  for (std::size_t i = 1; i < n; ++i) ordered[i - 1] = h.pairs[i];
+  const std::size_t last = closest_cars(h);
+  std::size_t m = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (i != last) ordered[m++] = h.pairs[i];
   std::sort(ordered.begin(), ordered.begin() + static_cast<std::ptrdiff_t>(n - 1),
             [](const Pair& a, const Pair& b) { return a.query->station < b.query->station; });
-  ordered[n - 1] = h.pairs[0];
+  ordered[n - 1] = h.pairs[last];
   event = MatchEvent{};
   event.k = static_cast<unsigned>(n);
   for (std::size_t i = 0; i < n; ++i) {

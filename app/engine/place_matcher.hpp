@@ -85,9 +85,10 @@ class PlaceMatcher {
   static double apart(const Hypothesis& h);
   // Within a few times the drift limits: it could be where the car is.
   bool plausible(const Hypothesis& h) const;
-  // Whether two alignments put the newest landmark in different places.
   // Whether two hypotheses' anchors are different places, not two visits of one.
   bool disagree(const Hypothesis& a, const Hypothesis& b) const;
+  // The pair whose two cars' poses, aligned, lie closest together.
+  static std::size_t closest_cars(const Hypothesis& h);
   void fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const;
   // Sum over the pairs of -log2 of their label's share of the landmarks seen.
   double evidence_bits(const Hypothesis& h) const;

@@ -146,6 +146,23 @@ TEST_CASE("a street driven back the other way is the same place", "[engine][plac
   CHECK(o.matches >= 3);
 }
 
+TEST_CASE("a place met from a cross street names the frames where the cars were closest", "[engine][place]") {
+  // Three markings round a crossing, passed eastwards, then northwards.
+  // Northwards the car passes the last one 8.6 m from where it passed it
+  // eastwards; the middle one, on both paths, 1 m.
+  const std::vector<Mark> world = {{98, -4, 14}, {104, 1, 15}, {111, 5, 1}};
+  SequenceEngine engine(place_config(3));
+  Car car(engine, world);
+  car.drive({{0, 0}, {200, 0}, {200, -150}, {104, -150}, {104, 100}});
+  engine.flush(car.sink);
+  REQUIRE(car.sink.events.size() >= 1);
+  CHECK(judge(car, car.sink.events).wrong == 0);
+  const MatchEvent& e = car.sink.events[0];
+  const Point q = car.trail()[e.query_frame()], m = car.trail()[e.match_frame()];
+  CHECK(std::hypot(q.x - m.x, q.y - m.y) < 2.0);
+  CHECK(e.query[e.k - 1].label == 15);
+}
+
 TEST_CASE("a place repeated nearby is never a loop", "[engine][place]") {
   // The same three markings at x = 100 and x = 140, nothing else: the
   // second lies beyond the drift limits of the revisit, but not so far
@@ -156,8 +173,9 @@ TEST_CASE("a place repeated nearby is never a loop", "[engine][place]") {
       world.push_back({base + m.x, m.y, m.label});
   SequenceEngine engine(place_config(3));
   Car car(engine, world);
-  // Past both, round a block, then past the first one only.
-  car.drive({{0, 0}, {260, 0}, {260, 200}, {-40, 200}, {-40, 0}, {125, 0}, {125, 200}});
+  // Past both, round a block, then past the first one only, turning off
+  // before the second comes into view.
+  car.drive({{0, 0}, {260, 0}, {260, 200}, {-40, 200}, {-40, 0}, {118, 0}, {118, 200}});
   engine.flush(car.sink);
   CHECK(car.sink.events.empty());
   CHECK(engine.place_counters().ambiguous >= 1);
