@@ -125,7 +125,7 @@ run_case() {
     # Signal mode: start; wait until the case is where it should be (a file
     # appears) and termdelay more; send the signal; time the exit.
     "${runner[@]}" </dev/null >"$W/.out" 2>"$W/.err" &
-    local pid=$! waited=0 who= wd
+    local pid=$! waited=0
     if [[ "$term" == file:* ]]; then
       local mark; expand mark "${term#file:}"
       while [ ! -e "$mark" ] && [ $waited -lt $((timeout * 100)) ] && alive $pid; do
@@ -138,15 +138,21 @@ run_case() {
       sent=1
       now t0
       kill -s "$termsig" $pid 2>/dev/null
-      sleep "$STOP_LIMIT_S" & wd=$!
-      wait -n -p who $pid $wd
-      st=$?
-      if [ "$who" = "$wd" ]; then
+      # Polled, not `wait -n` on the case and a watchdog: a case that ends
+      # before the watchdog starts is not reported until the watchdog ends.
+      # kill -0 fails once bash has reaped the case; wait still has its status.
+      local deadline=$((t0 + STOP_LIMIT_S * 1000000)) t
+      while kill -0 $pid 2>/dev/null; do
+        now t
+        [ "$t" -lt "$deadline" ] || break
+        sleep 0.002
+      done
+      if kill -0 $pid 2>/dev/null; then
         kill -KILL $pid 2>/dev/null; wait $pid 2>/dev/null; now t1
         add hang "still running ${STOP_LIMIT_S} s after SIG$termsig (killed)"
         st=137
       else
-        now t1; kill $wd 2>/dev/null; wait $wd 2>/dev/null
+        now t1; wait $pid; st=$?
       fi
     fi
   fi
