@@ -74,7 +74,7 @@ inline EngineConfig ecu_engine_defaults() {
   c.match.place_landmarks = 3;
   c.match.far_run_m = 300.0;
   c.match.place_within_m = 2000.0;
-  c.match.place_min_bits = 8.0;
+  c.match.place_min_bits = 6.0;
   return c;
 }
 
