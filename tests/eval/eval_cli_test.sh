@@ -139,6 +139,11 @@ cp "$run/frames.csv" "$work/frames.keep"
 check "output is frames.csv" 2 "^markloop-eval: $run/frames.csv: is the input $run/frames.csv: an output may not overwrite it" -- \
   "$eval_tool" "$run" --json "$run/frames.csv"
 cmp -s "$run/frames.csv" "$work/frames.keep" || { echo "FAIL frames.csv was overwritten"; failures=$((failures + 1)); }
+printf '0 0 0 0 0 0 0 1\n' >"$run/after.tum"
+cp "$run/after.tum" "$work/after.keep"
+check "output is the corrected trajectory" 2 "^markloop-eval: $run/after.tum: is the input $run/after.tum: an output may not overwrite it" -- \
+  "$eval_tool" "$run" --corrected "$run/after.tum" --svg "$run/after.tum"
+cmp -s "$run/after.tum" "$work/after.keep" || { echo "FAIL the corrected trajectory was overwritten"; failures=$((failures + 1)); }
 check "tolerance out of range" 2 "--tolerance must be in \(0, 10000\] metres" -- "$eval_tool" "$run" --tolerance 1e308
 run=$(fresh hugeyaw) && sed -i '3s/,[^,]*$/,1e308/' "$run/frames.csv"
 check "yaw out of range" 2 "^markloop-eval: $run/frames.csv:3: yaw is out of range" -- "$eval_tool" "$run"

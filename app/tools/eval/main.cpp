@@ -206,10 +206,10 @@ Options parse(int argc, char** argv) {
 void check_outputs(const Options& o) {
   const std::filesystem::path dir(o.dir);
   const std::string inputs[] = {dir / "frames.csv", dir / "markings.csv", dir / "visible.csv", o.can,
-                                o.detections,       o.landmarks};
+                                o.detections,       o.landmarks,          o.corrected};
   for (const std::string* output : {&o.svg, &o.png, &o.json})
     for (const std::string& input : inputs)
-      if (!output->empty() && platform::overwrites(*output, input))
+      if (!output->empty() && !input.empty() && platform::overwrites(*output, input))
         fail(*output + ": is the input " + input + ": an output may not overwrite it");
 }
 
