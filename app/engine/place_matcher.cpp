@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "app/common/units.hpp"
 #include "app/engine/sequence_engine.hpp"
@@ -227,12 +228,10 @@ std::size_t PlaceMatcher::closest_cars(const Hypothesis& h) {
   std::size_t closest = 0;
   double closest_sq = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < h.pairs.size(); ++i) {
-    const Landmark& q = *h.pairs[i].query;
-    const Landmark& s = *h.pairs[i].stored;
-    if (!q.has_car_pose || !s.has_car_pose) continue;
-    const Pose2 stored_car = compose(h.fit.transform, Pose2{s.car_x, s.car_y, s.car_yaw});
-    const double d_sq =
-        (Eigen::Vector2d(q.car_x, q.car_y) - Eigen::Vector2d(stored_car.x, stored_car.y)).squaredNorm();
+    const std::optional<Pose2> relative =
+        relative_car_pose(h.fit.transform, *h.pairs[i].query, *h.pairs[i].stored);
+    if (!relative) continue;
+    const double d_sq = relative->x * relative->x + relative->y * relative->y;
     if (d_sq < closest_sq) closest = i, closest_sq = d_sq;
   }
   return closest;

@@ -10,20 +10,6 @@
 #include "app/engine/rigid_alignment.hpp"
 
 namespace markloop {
-namespace {
-
-// The car at the query seen from the car at the match, both where they came
-// closest to the sequence's last marking, once `alignment` maps the match's
-// world frame onto the query's; none when either car's pose is unknown.
-std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& query_last,
-                                       const Landmark& match_last) {
-  if (!query_last.has_car_pose || !match_last.has_car_pose) return std::nullopt;
-  const Pose2 query_car{query_last.car_x, query_last.car_y, query_last.car_yaw};
-  const Pose2 match_car{match_last.car_x, match_last.car_y, match_last.car_yaw};
-  return compose(inverse(compose(alignment, match_car)), query_car);
-}
-
-}  // namespace
 
 const char* validate(const EngineConfig& c) {
   const auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };

@@ -21,4 +21,11 @@ Pose2 inverse(const Pose2& p) {
   return {-(c * p.x + s * p.y), s * p.x - c * p.y, wrap_angle(-p.yaw)};
 }
 
+std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& query, const Landmark& match) {
+  if (!query.has_car_pose || !match.has_car_pose) return std::nullopt;
+  const Pose2 query_car{query.car_x, query.car_y, query.car_yaw};
+  const Pose2 match_car{match.car_x, match.car_y, match.car_yaw};
+  return compose(inverse(compose(alignment, match_car)), query_car);
+}
+
 }  // namespace markloop

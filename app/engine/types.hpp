@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <optional>
 
 namespace markloop {
 
@@ -65,5 +66,10 @@ struct Landmark {
   double t = 0.0;        // time of last_frame, seconds
   double station = 0.0;  // distance travelled along the drive, metres
 };
+
+// The car at the query seen from the car at the match, both where they came
+// closest to their landmark, once `alignment` maps the match's world frame
+// onto the query's; none when either car's pose is unknown.
+std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& query, const Landmark& match);
 
 }  // namespace markloop
