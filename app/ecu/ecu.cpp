@@ -270,6 +270,11 @@ void Ecu::send_status(Nanoseconds now) noexcept {
   status.loop_time_max_ms = double(loop_time_max_ns_) / 1e6;
   status.landmark_count = static_cast<std::uint32_t>(std::min<std::size_t>(db.landmarks, 0xFFFFF));
   status.sequence_count = static_cast<std::uint32_t>(std::min<std::size_t>(db.sequences, 0xFFFFF));
+  if (const std::optional<ScaleEstimate> scale = engine_.odometry_scale().estimate()) {
+    status.odometry_scale_valid = true;
+    status.odometry_scale = scale->scale;
+    status.odometry_scale_error = scale->standard_error;
+  }
   // A new cycle starts now: failures while sending these pages count in it.
   dropped_in_cycle_ = 0;
   overruns_in_cycle_ = 0;

@@ -87,6 +87,18 @@ namespace {
 double ms(std::int64_t ns) {
   return double(ns) / 1e6;
 }
+
+void print_scale_line(const OdometryScaleEstimator& estimator) {
+  const ScaleCounters& c = estimator.counters();
+  char value[64] = "none yet";
+  if (const std::optional<ScaleEstimate> e = estimator.estimate())
+    std::snprintf(value, sizeof value, "%.5f +- %.5f", e->scale, e->standard_error);
+  std::fprintf(stderr,
+               "markloop: odometry scale by the camera %s (%llu markings; %llu passed while turning, "
+               "%llu too briefly, %llu outliers)\n",
+               value, (unsigned long long)c.markings_used, (unsigned long long)c.markings_turning,
+               (unsigned long long)c.markings_short, (unsigned long long)c.markings_outlier);
+}
 }  // namespace
 
 namespace {
@@ -167,6 +179,7 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
         (unsigned long long)e.matches, (unsigned long long)e.closures_extended,
         (unsigned long long)e.place_matches, (unsigned long long)p.queries, (unsigned long long)p.hypotheses,
         (unsigned long long)p.ambiguous, (unsigned long long)p.rejected_drift);
+    print_scale_line(ecu.engine().odometry_scale());
   }
   if (const Status written = write_summary(ecu, options, wall_seconds, mode, rss); !written) {
     std::fprintf(stderr, "markloop: %s\n", written.message().c_str());
@@ -219,6 +232,19 @@ void print_run_figures(std::FILE* out, const Ecu& ecu, double wall_seconds, cons
       ms(latency.max_ns()), db.landmarks, db.sequences, rss);
 }
 
+// The camera's measure of the odometry's scale, and the markings it rests on.
+void print_odometry_scale(std::FILE* out, const OdometryScaleEstimator& estimator) {
+  const ScaleCounters& c = estimator.counters();
+  std::fprintf(out, " \"odometry_scale\": {");
+  if (const std::optional<ScaleEstimate> e = estimator.estimate())
+    std::fprintf(out, "\"scale\": %.5f, \"standard_error\": %.5f, ", e->scale, e->standard_error);
+  std::fprintf(out,
+               "\"markings_used\": %llu, \"markings_turning\": %llu, \"markings_short\": %llu, "
+               "\"markings_outlier\": %llu},",
+               (unsigned long long)c.markings_used, (unsigned long long)c.markings_turning,
+               (unsigned long long)c.markings_short, (unsigned long long)c.markings_outlier);
+}
+
 // Where the engine's candidates went, and its rarer events; closes the summary.
 void print_engine_counters(std::FILE* out, const EngineCounters& e, const PlaceCounters& p) {
   const std::pair<const char*, std::uint64_t> engine_counters[] = {
@@ -266,6 +292,7 @@ Status write_summary(const Ecu& ecu, const RunOptions& options, double wall_seco
   std::FILE* out = ::open_memstream(&text, &length);
   if (out == nullptr) return error(options.summary_json + ": out of memory");
   print_run_figures(out, ecu, wall_seconds, mode, rss);
+  print_odometry_scale(out, ecu.engine().odometry_scale());
   print_engine_counters(out, ecu.engine().counters(), ecu.engine().place_counters());
   const bool formatted = std::fclose(out) == 0;
   const std::error_code ec =

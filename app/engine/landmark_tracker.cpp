@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "app/common/units.hpp"
+
 namespace markloop {
 
 void LandmarkTracker::observe(const FrameInput& frame, double odometer,
@@ -35,6 +37,8 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
       ++counters_.tracks_started;
       best = &tracks_.back();
       best->first_frame = frame.frame;
+      best->odometer_first = odometer;
+      best->yaw_first = frame.pose.yaw;
     }
     Track& track = *best;
     if (track.count == UINT16_MAX) continue;  // a marking seen for hours: enough
@@ -48,6 +52,7 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
     track.has_pose = frame.has_pose;
     track.car = frame.pose;
     track.updated = true;
+    add_range(track, frame, odometer, obs);
 
     bool voted = false;
     for (Vote& vote : track.votes) {
@@ -60,6 +65,19 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
     // More distinct labels than vote slots: the extras cannot win anyway.
     if (!voted) track.votes.push_back(Vote{obs.label, 1});
   }
+}
+
+void LandmarkTracker::add_range(Track& track, const FrameInput& frame, double odometer,
+                                const Observation& obs) {
+  if (!frame.has_pose) {
+    track.straight = false;
+    return;
+  }
+  const double turned = std::abs(wrap_angle(frame.pose.yaw - track.yaw_first));
+  if (turned > OdometryScaleEstimator::kMaxYawChangeDeg / kDegreesPerRadian) track.straight = false;
+  const double ahead =
+      (obs.x - frame.pose.x) * std::cos(frame.pose.yaw) + (obs.y - frame.pose.y) * std::sin(frame.pose.yaw);
+  track.range.add(odometer - track.odometer_first, ahead, obs.weight);
 }
 
 bool LandmarkTracker::to_landmark(const Track& track, Landmark& out) {

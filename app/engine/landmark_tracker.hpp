@@ -5,7 +5,8 @@
 // radius that has not been updated in this frame (so markings side by side in
 // one frame stay separate); the label is decided by vote. A track unseen for
 // `commit_after_s` has left view and is committed, unless it is spurious (too
-// few observations) or its vote has no majority.
+// few observations) or its vote has no majority. Every track that leaves
+// view also tells the odometry's scale (odometry_scale.hpp).
 #pragma once
 
 #include <cstdint>
@@ -13,6 +14,7 @@
 
 #include "app/common/fixed_vector.hpp"
 #include "app/engine/config.hpp"
+#include "app/engine/odometry_scale.hpp"
 #include "app/engine/types.hpp"
 
 namespace markloop {
@@ -46,6 +48,8 @@ class LandmarkTracker {
 
   std::size_t active() const { return tracks_.size(); }
   const TrackerCounters& counters() const { return counters_; }
+  // Over the whole run: a cleared map leaves the car's odometry as it was.
+  const OdometryScaleEstimator& odometry_scale() const { return scale_; }
   void clear() { tracks_.clear(); }
 
  private:
@@ -66,13 +70,22 @@ class LandmarkTracker {
     Pose2 car{};
     bool updated = false;
     FixedVector<Vote, kMaxVotes> votes;
+    // The marking's range ahead against the odometer, while the car's
+    // heading stays that of the first sighting.
+    RangeFit range;
+    double odometer_first = 0.0;
+    double yaw_first = 0.0;
+    bool straight = true;
   };
+
+  static void add_range(Track& track, const FrameInput& frame, double odometer, const Observation& obs);
 
   bool to_landmark(const Track& track, Landmark& out);
 
   TrackerConfig config_;
   FixedVector<Track, kMaxTracks> tracks_;
   TrackerCounters counters_;
+  OdometryScaleEstimator scale_;
 };
 
 template <std::size_t N>
@@ -88,6 +101,7 @@ bool LandmarkTracker::commit(double now, bool all, FixedVector<Landmark, N>& out
     if (out.full()) return false;
     Landmark landmark;
     if (to_landmark(tracks_[oldest], landmark)) out.push_back(landmark);
+    scale_.add_marking(tracks_[oldest].range, tracks_[oldest].straight);
     tracks_.erase_at(oldest);
   }
 }

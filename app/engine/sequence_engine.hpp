@@ -121,6 +121,7 @@ class SequenceEngine {
   const EngineCounters& counters() const { return counters_; }
   const TrackerCounters& tracker_counters() const { return tracker_.counters(); }
   const PlaceCounters& place_counters() const { return places_.counters(); }
+  const OdometryScaleEstimator& odometry_scale() const { return tracker_.odometry_scale(); }
   const SequenceDatabase& database() const { return database_; }
   // Between frames only: loading a saved map at start-up, clearing on command.
   SequenceDatabase& mutable_database() { return database_; }

@@ -142,6 +142,9 @@ void print_status_pages() {
   status.sequence_count = 1000001;
   status.fault_camera_blind = true;
   status.frames_blind = 3000000000U;
+  status.odometry_scale = 1.01234;
+  status.odometry_scale_error = 0.00042;
+  status.odometry_scale_valid = true;
   std::uint8_t counter = 0;
   for (const StatusPage page : Status::kPages) {
     status.status_page = page;
@@ -195,6 +198,19 @@ void print_status_pages() {
                {"FaultOverrun", 1},
                {"FaultCameraBlind", 1},
                {"FramesBlind", 3000000000.0}});
+        break;
+      case StatusPage::Odometry:
+        print(status, c,
+              {{"StatusAliveCounter", c},
+               {"StatusPage", p},
+               {"SystemState", raw(SystemState::Running)},
+               {"FaultCameraLost", 1},
+               {"FaultOdometryTimeout", 0},
+               {"FaultBusError", 0},
+               {"FaultOverrun", 1},
+               {"OdometryScale", 1.01234},
+               {"OdometryScaleError", 0.00042},
+               {"OdometryScaleValid", 1}});
         break;
     }
   }

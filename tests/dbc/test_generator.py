@@ -117,7 +117,7 @@ class BrokenDbc(unittest.TestCase):
                             'VAL_ 416 CommandCode 1 "ResetDatabase" 2 "SaveMap" 3 "Reboot" ;'), "outside")
 
     def test_page_without_value_name(self):
-        self.rejects(edited('VAL_ 688 StatusPage 0 "Processing" 1 "Timing" 2 "Database" 3 "Perception" ;',
+        self.rejects(edited('VAL_ 688 StatusPage 0 "Processing" 1 "Timing" 2 "Database" 3 "Perception" 4 "Odometry" ;',
                             'VAL_ 688 StatusPage 0 "Processing" 1 "Timing" 2 "Database" ;'), "exactly the pages")
 
     def test_unterminated_statement(self):

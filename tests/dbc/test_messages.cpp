@@ -56,7 +56,7 @@ static_assert(VehicleOdometry::kTimeout == std::chrono::milliseconds{60});
 static_assert(Command::kId == 0x1A0 && Command::kLength == 4 && !Command::kIsCyclic);
 static_assert(LoopDetection::kId == 0x2A0 && LoopDetection::kPages.size() == 6);
 static_assert(Status::kId == 0x2B0 && Status::kCycleTime == std::chrono::milliseconds{100});
-static_assert(Status::kPages.size() == 4);
+static_assert(Status::kPages.size() == 5);
 static_assert(layout::loop_detection::kQueryFrame.length == 32 &&
               layout::loop_detection::kMatchFrame.length == 32);
 static_assert(layout::vehicle_odometry::kWheelSpeed.order == ByteOrder::Motorola);
@@ -139,6 +139,21 @@ TEST_CASE("Status page 3 (the camera's blindness) encodes to the hand-worked byt
   status.frames_blind = 0x12345678;
   status.frames_processed = 0xFFFFFFFF;  // page 0's: must not leak into page 3
   CHECK(encoded(status, 0x3) == Bytes{0x5F, 0x33, 0x03, 0x01, 0x78, 0x56, 0x34, 0x12});
+}
+
+TEST_CASE("Status page 4 (the odometry's scale) encodes to the hand-worked bytes") {
+  // byte 1: counter 0x5, page 4 -> 0x45. byte 2: state Running = 1 -> 0x01.
+  // OdometryScale 0.99: (0.99 - 1) / 0.00001 = -1000 = 0xFC18 at bits 24..39,
+  //   little-endian: 18 FC. OdometryScaleError 0.00123 -> 123: 7B 00.
+  // OdometryScaleValid bit 56 -> byte 7 = 0x01.
+  // CRC over 02 52 45 01 18 FC 7B 00 01 = 0x33.
+  Status status;
+  status.status_page = StatusPage::Odometry;
+  status.system_state = SystemState::Running;
+  status.odometry_scale = 0.99;
+  status.odometry_scale_error = 0.00123;
+  status.odometry_scale_valid = true;
+  CHECK(encoded(status, 0x5) == Bytes{0x33, 0x45, 0x01, 0x18, 0xFC, 0x7B, 0x00, 0x01});
 }
 
 // ---- round trips ----------------------------------------------------------------
@@ -284,6 +299,9 @@ TEST_CASE("Status round-trips every page with state and flags on each") {
   sent.sequence_count = 0;
   sent.fault_camera_blind = true;
   sent.frames_blind = 4294967295U;
+  sent.odometry_scale = 1.004567;   // -> 456.7 -> 457 -> 1.00457
+  sent.odometry_scale_error = 0.7;  // beyond 16 bits: saturates
+  sent.odometry_scale_valid = true;
 
   Status received;
   for (const StatusPage page : Status::kPages) {
@@ -304,6 +322,9 @@ TEST_CASE("Status round-trips every page with state and flags on each") {
   CHECK(received.sequence_count == 0);
   CHECK(received.fault_camera_blind);
   CHECK(received.frames_blind == 4294967295U);
+  CHECK(received.odometry_scale == Catch::Approx(1.00457));
+  CHECK(received.odometry_scale_error == Catch::Approx(0.65535));
+  CHECK(received.odometry_scale_valid);
 }
 
 // ---- rejection --------------------------------------------------------------------
@@ -416,7 +437,7 @@ TEST_CASE("decode rejects a page the DBC does not define") {
     CHECK(decode(payload_of<LoopDetection>(bytes), out) == DecodeError::UnknownPage);
   }
   Bytes bytes = encoded(Status{});
-  bytes[1] = static_cast<std::uint8_t>((bytes[1] & 0x0F) | (4 << 4));
+  bytes[1] = static_cast<std::uint8_t>((bytes[1] & 0x0F) | (5 << 4));
   reseal<Status>(bytes);
   Status out;
   CHECK(decode(payload_of<Status>(bytes), out) == DecodeError::UnknownPage);

@@ -81,7 +81,7 @@ run=$(fresh farlandmark) && sed -i '2s/,30,48,/,30,900,/' "$run/ecu-landmarks.cs
 check "landmark beyond the truth" 2 "^markloop-eval: $run/ecu-landmarks.csv:2: last_frame 900 is beyond the truth's 800 frames" -- "$eval_tool" "$run"
 
 run=$(fresh badcan) && printf '(0000000080.000000) vcan0 2A0#00\n(0000000080.100000) vcan0 2A0#XY\n' >>"$run/ecu-can.log"
-check "bad candump line" 2 "^markloop-eval: $run/ecu-can.log:33:" -- "$eval_tool" "$run"
+check "bad candump line" 2 "^markloop-eval: $run/ecu-can.log:36:" -- "$eval_tool" "$run"
 # A CAN log that cannot be lined up with the drive is refused at its line; one
 # that can, but holds frames the ECU does not send, is judged with a warning.
 run=$(fresh wallclock) && sed -i 's/^(0000000/(1733130/' "$run/ecu-can.log"
@@ -91,15 +91,15 @@ run=$(fresh future) && sed -i '10s/^([0-9.]*)/(4102444800.000000)/' "$run/ecu-ca
 check "CAN frame far in the future" 2 "^markloop-eval: $run/ecu-can.log:10: stamp 4102444800.000000 s lies outside the drive" -- \
   "$eval_tool" "$run"
 run=$(fresh backwards) && sed -i '10s/^([0-9.]*)/(0000000001.000000)/' "$run/ecu-can.log"
-check "CAN stamps going back" 2 "^markloop-eval: $run/ecu-can.log:10: stamp 1.000000 s is before the line above's 57.004003 s" -- \
+check "CAN stamps going back" 2 "^markloop-eval: $run/ecu-can.log:10: stamp 1.000000 s is before the line above's 57.004002 s" -- \
   "$eval_tool" "$run"
 run=$(fresh cut) && truncate -s -7 "$run/ecu-can.log"
-check "CAN log cut in its last line" 2 "^markloop-eval: $run/ecu-can.log:31: the last line is cut short: no newline at its end, and its frame has 5 bytes where the ECU sends 8" -- \
+check "CAN log cut in its last line" 2 "^markloop-eval: $run/ecu-can.log:34: the last line is cut short: no newline at its end, and its frame has 5 bytes where the ECU sends 8" -- \
   "$eval_tool" "$run"
 run=$(fresh nonewline) && truncate -s -1 "$run/ecu-can.log"
 check "CAN log without a final newline" 0 "precision +50.0 %" -- "$eval_tool" "$run"
 run=$(fresh dlc) && sed -i -E '20,25s/(2A0#[0-9A-F]{10})[0-9A-F]*/\1/' "$run/ecu-can.log"
-check "CAN frames of the wrong length" 0 "^markloop-eval: warning: $run/ecu-can.log:20: 6 of 30 LoopDetection and Status frames have the wrong length \(this one 5 bytes, the DBC's 8\)" -- \
+check "CAN frames of the wrong length" 0 "^markloop-eval: warning: $run/ecu-can.log:20: 6 of 33 LoopDetection and Status frames have the wrong length \(this one 5 bytes, the DBC's 8\)" -- \
   "$eval_tool" "$run"
 grep -qE "LoopDetection +[0-9]+ accepted, [0-9]+ rejected \(.*length 6" "$work/out" ||
   { echo "FAIL the wrong lengths are not counted in the table"; failures=$((failures + 1)); }

@@ -1,5 +1,6 @@
 // markloop-posegraph: a drifting circle driven twice, corrected by its loops;
 // a wrong loop that must not bend it; bad inputs; the command line.
+#include <catch2/catch_approx.hpp>
 #include <catch2/catch_test_macros.hpp>
 #include <catch2/matchers/catch_matchers_string.hpp>
 
@@ -43,13 +44,14 @@ Truth circle_truth() {
   return truth;
 }
 
-// VehicleOdometry every 20 ms with a yaw-rate bias: the dead reckoning drifts.
-void write_odometry(const std::filesystem::path& path) {
+// VehicleOdometry every 20 ms with a yaw-rate bias (and the wheel speed
+// `speed_scale` times the truth): the dead reckoning drifts.
+void write_odometry(const std::filesystem::path& path, double speed_scale = 1.0) {
   eval::fixture::CandumpFile log(path);
   dbc::E2eSenderState sender;
   for (int i = 0; i * 0.02 <= static_cast<double>(kDriveFrames) / kFpsHz + 0.05; ++i) {
     dbc::VehicleOdometry m;
-    m.wheel_speed_m_per_s = kSpeed;
+    m.wheel_speed_m_per_s = kSpeed * speed_scale;
     m.yaw_rate_deg_per_s = kSpeed / kRadius_m * kDegreesPerRadian + kYawBias_dps;
     m.wheel_speed_valid = true;
     m.yaw_rate_valid = true;
@@ -92,8 +94,8 @@ std::filesystem::path scratch(const char* name) {
   return dir;
 }
 
-std::vector<Pose2> odometry_of_circle(const std::filesystem::path& dir) {
-  write_odometry(dir / "odometry.log");
+std::vector<Pose2> odometry_of_circle(const std::filesystem::path& dir, double speed_scale = 1.0) {
+  write_odometry(dir / "odometry.log", speed_scale);
   Result<OdometryTrack> track = read_odometry_log((dir / "odometry.log").string(), kFpsHz);
   REQUIRE(track);
   REQUIRE(track->poses.size() >= kDriveFrames);
@@ -137,6 +139,50 @@ TEST_CASE("the scale estimate is not pulled by wrong loops when the odometry has
   const Corrected c = correct(odometry, loops, truth, solver);
   CHECK(std::abs(c.report.scale) < 0.002);
   CHECK(c.after_m < 0.1 * c.before_m);
+}
+
+TEST_CASE("the camera's measure of the scale corrects what the loops cannot") {
+  // The wheel speed reads 2 % high: every lap closes, only bigger.
+  const Truth truth = circle_truth();
+  const std::vector<Pose2> odometry = odometry_of_circle(scratch("posegraph-camera-scale"), 1.02);
+  const Corrected loops_only = correct(odometry, true_loops(truth), truth);
+  SolverOptions solver;
+  solver.scale_prior_mean = 1.0 / 1.02 - 1.0;
+  solver.scale_prior_sigma = 0.002;
+  const Corrected with_camera = correct(odometry, true_loops(truth), truth, solver);
+  CHECK(with_camera.report.scale == Catch::Approx(1.0 / 1.02 - 1.0).margin(0.002));
+  CHECK(with_camera.after_m < 0.5 * loops_only.after_m);
+  CHECK(with_camera.after_m < 0.1 * with_camera.before_m);
+}
+
+TEST_CASE("the ECU's OdometryScale is read from its Status pages, only when valid") {
+  const auto dir = scratch("posegraph-status");
+  const auto write_status = [&](const char* name, bool valid, bool odometry_page) {
+    eval::fixture::CandumpFile log(dir / name);
+    dbc::E2eSenderState sender;
+    dbc::Status status;
+    status.odometry_scale_valid = valid;
+    status.odometry_scale = 1.0123;
+    status.odometry_scale_error = 0.0004;
+    for (const dbc::StatusPage page : dbc::Status::kPages) {
+      if (page == dbc::StatusPage::Odometry && !odometry_page) continue;
+      status.status_page = page;
+      log.write(dbc::encode_frame(status, sender), 1.0);
+    }
+  };
+  write_status("valid.log", true, true);
+  write_status("invalid.log", false, true);
+  write_status("older-ecu.log", true, false);
+  const Result<LoopInput> valid = read_ecu_loops((dir / "valid.log").string(), kDriveFrames);
+  REQUIRE(valid);
+  REQUIRE(valid->camera_scale.has_value());
+  CHECK(valid->camera_scale->scale == Catch::Approx(1.0123));
+  CHECK(valid->camera_scale->standard_error == Catch::Approx(0.0004));
+  for (const char* name : {"invalid.log", "older-ecu.log"}) {
+    const Result<LoopInput> none = read_ecu_loops((dir / name).string(), kDriveFrames);
+    REQUIRE(none);
+    CHECK_FALSE(none->camera_scale.has_value());
+  }
 }
 
 TEST_CASE("loop frames attached by the odometry correct as well as loop frames with nodes") {

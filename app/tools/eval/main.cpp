@@ -476,6 +476,11 @@ void print_status(const EcuCanLog& log) {
     std::printf("  %-34s %u landmarks, %u sequences\n", "database", s.last.landmark_count,
                 s.last.sequence_count);
   if (s.page_seen[3]) std::printf("  %-34s %u\n", "frames showing no road", s.last.frames_blind);
+  if (s.page_seen[4] && s.last.odometry_scale_valid)
+    std::printf("  %-34s %.5f +- %.5f\n", "odometry scale by the camera", s.last.odometry_scale,
+                s.last.odometry_scale_error);
+  else if (s.page_seen[4])
+    std::printf("  %-34s none yet\n", "odometry scale by the camera");
   std::printf(
       "  %-34s camera lost %llu, camera blind %llu, odometry timeout %llu, bus error %llu, "
       "overrun %llu\n",

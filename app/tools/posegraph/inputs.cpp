@@ -113,6 +113,10 @@ Result<LoopInput> read_ecu_loops(const std::string& path, std::size_t frame_coun
   LoopInput input;
   input.incomplete = log->detections_incomplete;
   input.rejected_frames = log->loop_frames.rejected();
+  const dbc::Status& status = log->status.last;
+  if (log->status.page_seen[static_cast<std::size_t>(dbc::StatusPage::Odometry)] &&
+      status.odometry_scale_valid)
+    input.camera_scale = CameraScale{status.odometry_scale, status.odometry_scale_error};
   for (const eval::LoopReport& report : log->loops) {
     const dbc::LoopDetection& d = report.message;
     if (!d.pose_valid) {

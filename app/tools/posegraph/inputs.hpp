@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -42,11 +43,19 @@ struct LoopMeasurement {
   bool corrupted = false;   // put in by --corrupt-loops
 };
 
+// The ECU's measure of the odometry's scale (Status page Odometry, its last
+// valid value): odometry metres per true metre.
+struct CameraScale {
+  double scale = 1.0;
+  double standard_error = 0.0;
+};
+
 struct LoopInput {
   std::vector<LoopMeasurement> loops;
-  std::size_t without_pose = 0;     // PoseValid clear / no relative_pose: skipped
-  std::size_t incomplete = 0;       // pages missing or out of order: skipped
-  std::size_t rejected_frames = 0;  // LoopDetection frames failing E2E checks
+  std::optional<CameraScale> camera_scale;  // none in a replay's JSONL
+  std::size_t without_pose = 0;             // PoseValid clear / no relative_pose: skipped
+  std::size_t incomplete = 0;               // pages missing or out of order: skipped
+  std::size_t rejected_frames = 0;          // LoopDetection frames failing E2E checks
 };
 
 // The ECU's --can-out log. A loop naming a frame at or beyond frame_count

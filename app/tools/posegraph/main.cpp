@@ -31,7 +31,8 @@ constexpr const char* kUsage = R"(usage: markloop-posegraph --can-in FILE --can-
 
 Builds a 2-D pose graph from the car's odometry and markloop's loop
 closures, optimises it with Ceres Solver (robust loss on the loops, the
-odometry's scale error estimated too) and writes the trajectory before
+odometry's scale error estimated too, from the camera's measure of it
+that the ECU sends and from the loops) and writes the trajectory before
 and after. With --truth it prints the
 absolute and relative trajectory errors before and after.
 
@@ -67,8 +68,15 @@ least the floor, heading the loop sigma):
   --no-scale               do not estimate the odometry's scale error s (its
                            translations scaled by 1 + s; estimated after the
                            robust stages, without the loops they rejected)
-  --scale-prior SIGMA      standard deviation of the prior on s, 0.0001 to 1;
-                           default 0.02
+  --scale-prior SIGMA      standard deviation of the prior on s without the
+                           camera's measure, 0.0001 to 1; default 0.02
+  --camera-scale-floor SIGMA
+                           the prior on s is the ECU's OdometryScale (Status
+                           page Odometry) when it sent one, its standard
+                           deviation OdometryScaleError but at least this
+                           (the camera's own range errors), 0.0001 to 1;
+                           default 0.002
+  --no-camera-scale        ignore the ECU's OdometryScale
 
 robustness experiment:
   --corrupt-loops F        replace the share F (0 to 1) of the loops, chosen at
@@ -110,6 +118,8 @@ constexpr OptionSpec kOptions[] = {
     {"--no-robust", "", "plain least squares on the loops"},
     {"--no-scale", "", "do not estimate the odometry's scale error"},
     {"--scale-prior", "SIGMA", "prior on the odometry's scale error"},
+    {"--camera-scale-floor", "SIGMA", "least sigma of the camera's scale"},
+    {"--no-camera-scale", "", "ignore the ECU's OdometryScale"},
     {"--corrupt-loops", "F", "replace this share of loops by wrong ones"},
     {"--seed", "N", "seed of --corrupt-loops"},
     {"--out", "DIR", "output folder"},
@@ -121,6 +131,8 @@ struct Options {
   SolverOptions solver;
   double corrupt = 0.0;
   unsigned seed = 1;
+  bool camera_scale = true;
+  double camera_scale_floor = 0.002;
 };
 
 double number_in(std::string_view name, std::string_view value, double low, double high) {
@@ -159,6 +171,8 @@ void apply_option(std::string_view name, std::string_view value, Options& o) {
   if (name == "--no-robust") o.solver.robust_scales = {};
   if (name == "--no-scale") o.solver.estimate_scale = false;
   if (name == "--scale-prior") o.solver.scale_prior_sigma = number_in(name, value, 1e-4, 1);
+  if (name == "--camera-scale-floor") o.camera_scale_floor = number_in(name, value, 1e-4, 1);
+  if (name == "--no-camera-scale") o.camera_scale = false;
   if (name == "--corrupt-loops") o.corrupt = number_in(name, value, 0, 1);
   if (name == "--seed") o.seed = parse_whole(name, std::string(value).c_str());
 }
@@ -233,6 +247,24 @@ void load_inputs(Run& r) {
       "order), %zu LoopDetection frames rejected\n",
       r.loops.loops.size(), r.loops.without_pose, r.loops.incomplete, r.loops.rejected_frames);
   if (!r.o.truth.empty()) r.truth = or_fail(load_truth(r.o.truth, r.o.graph.fps));
+}
+
+// The camera's measure of the odometry's scale becomes the prior on s
+// (corrected distance = odometry distance * (1 + s)).
+void use_camera_scale(Run& r) {
+  const std::optional<CameraScale>& camera = r.loops.camera_scale;
+  if (!camera) {
+    if (!r.o.can_out.empty()) std::printf("odometry scale by the camera: none in the ECU's log\n");
+    return;
+  }
+  const double sigma =
+      std::hypot(camera->standard_error / (camera->scale * camera->scale), r.o.camera_scale_floor);
+  std::printf("odometry scale by the camera: %.5f +- %.5f%s", camera->scale, camera->standard_error,
+              r.o.camera_scale && r.o.solver.estimate_scale ? "" : " (not used)\n");
+  if (!r.o.camera_scale || !r.o.solver.estimate_scale) return;
+  r.o.solver.scale_prior_mean = 1.0 / camera->scale - 1.0;
+  r.o.solver.scale_prior_sigma = sigma;
+  std::printf("; prior on s %+.4f +- %.4f\n", r.o.solver.scale_prior_mean, sigma);
 }
 
 void corrupt(Run& r) {
@@ -314,6 +346,7 @@ int main(int argc, char** argv) {
   r.o = parse(argc, argv);
   check_outputs(r.o);
   load_inputs(r);
+  use_camera_scale(r);
   corrupt(r);
   const PoseGraph graph = build_graph(r.odometry, r.loops.loops, r.o.graph);
   const SolveReport solved = or_fail(optimise(graph, r.o.solver));

@@ -1,5 +1,6 @@
 #include "app/tools/posegraph/solver.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -82,12 +83,13 @@ struct LoopCost {
   }
 };
 
-// The weak prior on the scale error: s / sigma.
+// The prior on the scale error: (s - mean) / sigma.
 struct ScalePrior {
+  double mean;
   double sqrt_information;
   template <typename T>
   bool operator()(const T* s, T* residual) const {
-    residual[0] = T(sqrt_information) * s[0];
+    residual[0] = T(sqrt_information) * (s[0] - T(mean));
     return true;
   }
 };
@@ -150,7 +152,9 @@ Result<SolveReport> optimise(const PoseGraph& graph, const SolverOptions& option
   ceres::Problem::Options problem_options;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
-  double scale = 0.0;
+  // Without loops to refine it, the scale stays where the prior puts it.
+  double scale =
+      options.estimate_scale ? std::clamp(options.scale_prior_mean, -kScaleBound, kScaleBound) : 0.0;
   problem.AddParameterBlock(&scale, 1);
   for (const Edge& e : graph.odometry)
     problem.AddResidualBlock(OdometryCost::create(e), nullptr, nodes[e.from].data(), nodes[e.to].data(),
@@ -162,15 +166,15 @@ Result<SolveReport> optimise(const PoseGraph& graph, const SolverOptions& option
     loop_blocks.push_back(problem.AddResidualBlock(LoopCost::create(e), &loop_loss, nodes[e.from].data(),
                                                    nodes[e.to].data(), &scale));
   problem.SetParameterBlockConstant(nodes[0].data());
-  // The scale is held at 0 through the robust stages and estimated in one
+  // The scale is held at the prior's mean through the robust stages and estimated in one
   // more solve without the loops they rejected: while loops still disagree
   // (early on, or wrong ones at any time) shrinking the whole map is the
   // cheapest way to bring each loop's two frames together.
   const bool estimate_scale = options.estimate_scale && !graph.loops.empty();
   if (estimate_scale) {
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<ScalePrior, 1, 1>(new ScalePrior{1.0 / options.scale_prior_sigma}),
-        nullptr, &scale);
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ScalePrior, 1, 1>(
+                                 new ScalePrior{options.scale_prior_mean, 1.0 / options.scale_prior_sigma}),
+                             nullptr, &scale);
     problem.SetParameterLowerBound(&scale, 0, -kScaleBound);
     problem.SetParameterUpperBound(&scale, 0, kScaleBound);
   }

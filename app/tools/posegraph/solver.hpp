@@ -4,8 +4,9 @@
 // pull the map into shape; the last leaves a loop that still disagrees with
 // the rest almost no weight, so a wrong loop cannot bend the map. Optionally
 // the odometry's scale error s is estimated with the poses (its translations
-// scaled by 1 + s, a weak prior holding s near 0): only the loops' relative
-// poses, not the closures themselves, tell the scale.
+// scaled by 1 + s, a prior holding s near 0 or near what the camera
+// measured): the loops' relative poses tell the scale only weakly, the
+// closures themselves not at all.
 #pragma once
 
 #include <cstddef>
@@ -29,9 +30,10 @@ struct SolverOptions {
   // Ceres's function tolerance in every stage but the last, and in the last.
   double early_function_tolerance = 1e-3;
   double function_tolerance = 1e-6;
-  // Estimate the odometry's scale error, with a prior of this standard
-  // deviation on it.
+  // Estimate the odometry's scale error, with a prior of this mean and
+  // standard deviation on it.
   bool estimate_scale = true;
+  double scale_prior_mean = 0.0;
   double scale_prior_sigma = 0.02;
   // Before a stage, a loop whose whitened residual exceeds this many of the
   // stage's Cauchy scales is removed from the problem (0: never).
