@@ -94,10 +94,10 @@ void print_scale_line(const OdometryScaleEstimator& estimator) {
   if (const std::optional<ScaleEstimate> e = estimator.estimate())
     std::snprintf(value, sizeof value, "%.5f +- %.5f", e->scale, e->standard_error);
   std::fprintf(stderr,
-               "markloop: odometry scale by the camera %s (%llu markings; %llu passed while turning, "
-               "%llu too briefly, %llu outliers)\n",
-               value, (unsigned long long)c.markings_used, (unsigned long long)c.markings_turning,
-               (unsigned long long)c.markings_short, (unsigned long long)c.markings_outlier);
+               "markloop: odometry scale by the camera %s (%llu markings; %llu seen too briefly, %llu "
+               "outliers)\n",
+               value, (unsigned long long)c.markings_used, (unsigned long long)c.markings_short,
+               (unsigned long long)c.markings_outlier);
 }
 }  // namespace
 
@@ -238,11 +238,9 @@ void print_odometry_scale(std::FILE* out, const OdometryScaleEstimator& estimato
   std::fprintf(out, " \"odometry_scale\": {");
   if (const std::optional<ScaleEstimate> e = estimator.estimate())
     std::fprintf(out, "\"scale\": %.5f, \"standard_error\": %.5f, ", e->scale, e->standard_error);
-  std::fprintf(out,
-               "\"markings_used\": %llu, \"markings_turning\": %llu, \"markings_short\": %llu, "
-               "\"markings_outlier\": %llu},",
-               (unsigned long long)c.markings_used, (unsigned long long)c.markings_turning,
-               (unsigned long long)c.markings_short, (unsigned long long)c.markings_outlier);
+  std::fprintf(out, "\"markings_used\": %llu, \"markings_short\": %llu, \"markings_outlier\": %llu},",
+               (unsigned long long)c.markings_used, (unsigned long long)c.markings_short,
+               (unsigned long long)c.markings_outlier);
 }
 
 // Where the engine's candidates went, and its rarer events; closes the summary.

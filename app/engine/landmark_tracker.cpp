@@ -2,8 +2,6 @@
 
 #include <cmath>
 
-#include "app/common/units.hpp"
-
 namespace markloop {
 
 void LandmarkTracker::observe(const FrameInput& frame, double odometer,
@@ -37,8 +35,6 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
       ++counters_.tracks_started;
       best = &tracks_.back();
       best->first_frame = frame.frame;
-      best->odometer_first = odometer;
-      best->yaw_first = frame.pose.yaw;
     }
     Track& track = *best;
     if (track.count == UINT16_MAX) continue;  // a marking seen for hours: enough
@@ -52,7 +48,7 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
     track.has_pose = frame.has_pose;
     track.car = frame.pose;
     track.updated = true;
-    add_range(track, frame, odometer, obs);
+    if (frame.has_pose) add_drift(track, frame, obs);
 
     bool voted = false;
     for (Vote& vote : track.votes) {
@@ -67,17 +63,13 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
   }
 }
 
-void LandmarkTracker::add_range(Track& track, const FrameInput& frame, double odometer,
-                                const Observation& obs) {
-  if (!frame.has_pose) {
-    track.straight = false;
-    return;
+void LandmarkTracker::add_drift(Track& track, const FrameInput& frame, const Observation& obs) {
+  if (track.drift.count == 0) {
+    track.car_first_x = frame.pose.x;
+    track.car_first_y = frame.pose.y;
   }
-  const double turned = std::abs(wrap_angle(frame.pose.yaw - track.yaw_first));
-  if (turned > OdometryScaleEstimator::kMaxYawChangeDeg / kDegreesPerRadian) track.straight = false;
-  const double ahead =
-      (obs.x - frame.pose.x) * std::cos(frame.pose.yaw) + (obs.y - frame.pose.y) * std::sin(frame.pose.yaw);
-  track.range.add(odometer - track.odometer_first, ahead, obs.weight);
+  track.drift.add(frame.pose.x - track.car_first_x, frame.pose.y - track.car_first_y,
+                  obs.x - track.car_first_x, obs.y - track.car_first_y, obs.weight);
 }
 
 bool LandmarkTracker::to_landmark(const Track& track, Landmark& out) {

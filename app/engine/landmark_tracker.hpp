@@ -70,15 +70,14 @@ class LandmarkTracker {
     Pose2 car{};
     bool updated = false;
     FixedVector<Vote, kMaxVotes> votes;
-    // The marking's range ahead against the odometer, while the car's
-    // heading stays that of the first sighting.
-    RangeFit range;
-    double odometer_first = 0.0;
-    double yaw_first = 0.0;
-    bool straight = true;
+    // The marking's world position against the car's displacement, both
+    // from where the car was at the first sighting.
+    MarkingFit drift;
+    double car_first_x = 0.0;
+    double car_first_y = 0.0;
   };
 
-  static void add_range(Track& track, const FrameInput& frame, double odometer, const Observation& obs);
+  static void add_drift(Track& track, const FrameInput& frame, const Observation& obs);
 
   bool to_landmark(const Track& track, Landmark& out);
 
@@ -101,7 +100,7 @@ bool LandmarkTracker::commit(double now, bool all, FixedVector<Landmark, N>& out
     if (out.full()) return false;
     Landmark landmark;
     if (to_landmark(tracks_[oldest], landmark)) out.push_back(landmark);
-    scale_.add_marking(tracks_[oldest].range, tracks_[oldest].straight);
+    scale_.add_marking(tracks_[oldest].drift);
     tracks_.erase_at(oldest);
   }
 }

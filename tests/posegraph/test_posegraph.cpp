@@ -250,6 +250,13 @@ TEST_CASE("command line: writes the trajectories and prints the ATE") {
       eval::fixture::send_detection(log, sender, static_cast<std::uint8_t>(t), m.query, m.match, m.relative.x,
                                     m.relative.y, m.relative.yaw * kDegreesPerRadian, t);
     }
+    // An OdometryScale no wheel could give: reported, not used.
+    dbc::E2eSenderState status_sender;
+    dbc::Status status;
+    status.status_page = dbc::StatusPage::Odometry;
+    status.odometry_scale_valid = true;
+    status.odometry_scale = 0.9;
+    log.write(dbc::encode_frame(status, status_sender), t + 1.0);
     std::ofstream frames(dir / "frames.csv");
     frames << "frame,t,x,y,yaw\n";
     for (std::size_t k = 0; k < truth.poses.size(); ++k)
@@ -264,6 +271,8 @@ TEST_CASE("command line: writes the trajectories and prints the ATE") {
   std::ifstream out(dir / "stdout.txt");
   const std::string printed((std::istreambuf_iterator<char>(out)), std::istreambuf_iterator<char>());
   CHECK_THAT(printed, ContainsSubstring("ATE (RMSE after SE(2) alignment"));
+  CHECK_THAT(printed,
+             ContainsSubstring("odometry scale by the camera: 0.90000 +- 0.00000 (not used: beyond"));
   for (const char* file : {"before.tum", "after.tum", "before.kitti", "after.kitti", "posegraph.svg"})
     CHECK(std::filesystem::file_size(dir / "out" / file) > 0);
   std::ifstream tum(dir / "out" / "after.tum");

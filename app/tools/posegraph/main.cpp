@@ -262,6 +262,10 @@ void use_camera_scale(Run& r) {
   std::printf("odometry scale by the camera: %.5f +- %.5f%s", camera->scale, camera->standard_error,
               r.o.camera_scale && r.o.solver.estimate_scale ? "" : " (not used)\n");
   if (!r.o.camera_scale || !r.o.solver.estimate_scale) return;
+  if (!(std::abs(1.0 / camera->scale - 1.0) <= kScaleBound)) {
+    std::printf(" (not used: beyond the %.0f %% the solver allows)\n", 100.0 * kScaleBound);
+    return;
+  }
   r.o.solver.scale_prior_mean = 1.0 / camera->scale - 1.0;
   r.o.solver.scale_prior_sigma = sigma;
   std::printf("; prior on s %+.4f +- %.4f\n", r.o.solver.scale_prior_mean, sigma);

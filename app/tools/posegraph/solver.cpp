@@ -111,9 +111,6 @@ double thread_cpu_seconds() {
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
 }
 
-// The scale error is kept within this (a wheel circumference 5 % off).
-constexpr double kScaleBound = 0.05;
-
 // The first available of the preferred library and CXSparse, Eigen,
 // SuiteSparse (measured fastest in that order on the bench's graph, one
 // thread; CHOLMOD's supernodal factorisation pays for its small supernodes).

@@ -22,6 +22,9 @@ namespace markloop::posegraph {
 // else the first it has of CXSparse, Eigen, SuiteSparse.
 enum class SparseLibrary { kCxSparse, kEigen, kSuiteSparse };
 
+// The scale error is kept within this (a wheel circumference 5 % off).
+inline constexpr double kScaleBound = 0.05;
+
 struct SolverOptions {
   // Cauchy scales of the stages, in standard deviations of a loop edge.
   std::vector<double> robust_scales{100.0, 2.0};
