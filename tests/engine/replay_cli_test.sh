@@ -99,6 +99,10 @@ if [ "$records" -lt 10 ] || [ "$lines" != $((2 * records)) ]; then
   echo "FAIL outputs: $lines lines in matches.txt for $records JSON records"; failures=$((failures + 1))
 fi
 grep -q '"residual_m"' "$work/matches.jsonl" || { echo "FAIL jsonl lacks residuals"; failures=$((failures + 1)); }
+# The simulator's wheel speed reads 0.5 % high (drift 1): the markings tell.
+scale=$(sed -n 's/.*odometry scale by the markings \([0-9.]*\) .*/\1/p' "$work/out")
+awk -v s="$scale" 'BEGIN { exit !(s > 1.000 && s < 1.012) }' ||
+  { echo "FAIL odometry scale '$scale' not near 1.005"; failures=$((failures + 1)); }
 check "sweep" 0 "Correct matches \(%\)" -- "$replay" --markings "$work/drive/markings.txt" \
   --poses "$work/drive/poses.txt" --truth "$work/drive/frames.csv" --sweep 2..6
 check "compat on the drive" 0 "matches \(k=4\)" -- "$replay" --markings "$work/drive/markings.txt" --compat

@@ -284,4 +284,12 @@ TEST_CASE("command line: writes the trajectories and prints the ATE") {
       std::string(MARKLOOP_POSEGRAPH_BIN) + " --can-in " + (dir / "out/before.tum").string() + " --can-out " +
       (dir / "ecu.log").string() + " --out " + (dir / "out").string() + " 2> /dev/null";
   CHECK(WEXITSTATUS(std::system(overwrite.c_str())) == 2);
+  // The scale given by hand: within the bound only, and not with its opposite.
+  CHECK(WEXITSTATUS(std::system((run + " --camera-scale 1.5 2> /dev/null").c_str())) == 2);
+  CHECK(WEXITSTATUS(std::system((run + " --camera-scale 1.01 --no-camera-scale 2> /dev/null").c_str())) == 2);
+  REQUIRE(std::system((run + " --camera-scale 1.01 > " + (dir / "given.txt").string()).c_str()) == 0);
+  std::ifstream given(dir / "given.txt");
+  const std::string given_printed((std::istreambuf_iterator<char>(given)), std::istreambuf_iterator<char>());
+  CHECK_THAT(given_printed,
+             ContainsSubstring("odometry scale by the camera: 1.01000 +- 0.00000; prior on s -0.0099"));
 }

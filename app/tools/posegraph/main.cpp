@@ -76,6 +76,10 @@ least the floor, heading the loop sigma):
                            deviation OdometryScaleError but at least this
                            (the camera's own range errors), 0.0001 to 1;
                            default 0.002
+  --camera-scale SCALE     the camera's measure of the odometry's scale, 0.9
+                           to 1.1, in place of the ECU's (for a replay's JSONL:
+                           markloop-replay prints it); standard deviation the
+                           floor
   --no-camera-scale        ignore the ECU's OdometryScale
 
 robustness experiment:
@@ -119,6 +123,7 @@ constexpr OptionSpec kOptions[] = {
     {"--no-scale", "", "do not estimate the odometry's scale error"},
     {"--scale-prior", "SIGMA", "prior on the odometry's scale error"},
     {"--camera-scale-floor", "SIGMA", "least sigma of the camera's scale"},
+    {"--camera-scale", "SCALE", "the odometry's scale, measured elsewhere"},
     {"--no-camera-scale", "", "ignore the ECU's OdometryScale"},
     {"--corrupt-loops", "F", "replace this share of loops by wrong ones"},
     {"--seed", "N", "seed of --corrupt-loops"},
@@ -133,6 +138,7 @@ struct Options {
   unsigned seed = 1;
   bool camera_scale = true;
   double camera_scale_floor = 0.002;
+  std::optional<double> camera_scale_given;
 };
 
 double number_in(std::string_view name, std::string_view value, double low, double high) {
@@ -173,6 +179,7 @@ void apply_option(std::string_view name, std::string_view value, Options& o) {
   if (name == "--scale-prior") o.solver.scale_prior_sigma = number_in(name, value, 1e-4, 1);
   if (name == "--camera-scale-floor") o.camera_scale_floor = number_in(name, value, 1e-4, 1);
   if (name == "--no-camera-scale") o.camera_scale = false;
+  if (name == "--camera-scale") o.camera_scale_given = number_in(name, value, 0.9, 1.1);
   if (name == "--corrupt-loops") o.corrupt = number_in(name, value, 0, 1);
   if (name == "--seed") o.seed = parse_whole(name, std::string(value).c_str());
 }
@@ -192,6 +199,8 @@ Options parse(int argc, char** argv) {
   if (from_ecu && (o.can_in.empty() || o.can_out.empty())) fail("--can-in and --can-out go together");
   if (from_replay && (o.replay_jsonl.empty() || o.poses.empty()))
     fail("--replay-jsonl and --poses go together");
+  if (o.camera_scale_given && !o.camera_scale)
+    fail("--camera-scale and --no-camera-scale contradict each other");
   if (o.out.empty()) fail("--out DIR is required (see --help)");
   return o;
 }
@@ -252,6 +261,7 @@ void load_inputs(Run& r) {
 // The camera's measure of the odometry's scale becomes the prior on s
 // (corrected distance = odometry distance * (1 + s)).
 void use_camera_scale(Run& r) {
+  if (r.o.camera_scale_given) r.loops.camera_scale = CameraScale{*r.o.camera_scale_given, 0.0};
   const std::optional<CameraScale>& camera = r.loops.camera_scale;
   if (!camera) {
     if (!r.o.can_out.empty()) std::printf("odometry scale by the camera: none in the ECU's log\n");

@@ -595,6 +595,11 @@ void print_counters(const Replay& r, const ReplayResult& result, unsigned k) {
   if (c.matches_held_far > 0)
     std::printf("markloop-replay: %llu sequence matches held back (visits far apart, run too short)\n",
                 (unsigned long long)c.matches_held_far);
+  if (const std::optional<ScaleEstimate>& scale = result.odometry_scale)
+    std::printf(
+        "markloop-replay: odometry scale by the markings %.5f +- %.5f (%u markings; "
+        "markloop-posegraph --camera-scale)\n",
+        scale->scale, scale->standard_error, scale->markings);
 }
 
 void print_loop(const Replay& r, const MatchEvent& e) {

@@ -102,6 +102,7 @@ ReplayResult run_engine(const std::vector<MarkingRecord>& records, const std::ve
   result.counters = engine->counters();
   result.places = engine->place_counters();
   result.tracker = engine->tracker_counters();
+  result.odometry_scale = engine->odometry_scale().estimate();
   result.database = engine->database().stats();
   return result;
 }

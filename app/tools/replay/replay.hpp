@@ -19,6 +19,7 @@ struct ReplayResult {
   EngineCounters counters;
   PlaceCounters places;
   TrackerCounters tracker;
+  std::optional<ScaleEstimate> odometry_scale;  // the camera's measure (odometry_scale.hpp)
   DatabaseStats database;
   std::size_t frames = 0;
 };
