@@ -69,7 +69,7 @@ inline EngineConfig ecu_engine_defaults() {
   c.tracker.release_lag_m = 5.0;
   c.match.max_residual_m = 0.3;
   c.match.max_drift_rel = 0.02;
-  c.match.max_frame_distance_m = 5.0;
+  c.match.max_frame_distance_m = 4.0;
   c.match.confirm_loaded_places = true;
   c.match.place_landmarks = 3;
   c.match.far_run_m = 300.0;

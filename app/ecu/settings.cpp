@@ -341,7 +341,9 @@ constexpr Setting kSettings[] = {
      .section = S::kEngine,
      .description = "largest distance between a loop's two frames (the closest approach to the last "
                     "marking on each visit) by its relative pose; 0: no limit. Where the routes part "
-                    "just before that marking, the markings agree but the frames do not"},
+                    "just before that marking, the markings agree but the frames do not. A metre "
+                    "under the 5 m a loop promises: the relative pose itself is off by up to half a "
+                    "metre where the car turns"},
     {.key = "engine.max_drift_rel",
      .kind = K::kReal,
      .member = member([](auto& c) -> auto& { return c.engine.match.max_drift_rel; }),

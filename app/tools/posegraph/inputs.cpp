@@ -136,7 +136,9 @@ namespace {
 
 // The number after "\"key\":" in a JSON line, searched from `from`.
 std::optional<double> json_number(std::string_view line, std::string_view key, std::size_t from = 0) {
-  const std::string quoted = "\"" + std::string(key) + "\":";
+  // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on a chain of +.
+  std::string quoted(1, '"');
+  quoted.append(key).append("\":");
   const std::size_t at = line.find(quoted, from);
   if (at == std::string_view::npos) return std::nullopt;
   const std::string rest(line.substr(at + quoted.size(), 40));
