@@ -23,8 +23,10 @@ namespace markloop::posegraph {
 // yaw_rate_error * dt; across the car, the heading error's sway over d
 // (d * sigma_yaw / 2) + floor.
 struct OdometryNoise {
-  double scale_error = 0.01;         // relative wheel-speed (distance) error
-  double yaw_rate_error_dps = 0.05;  // yaw-rate error, deg/s
+  double scale_error = 0.01;  // relative wheel-speed (distance) error
+  // A yaw-rate sensor's bias, uncalibrated, is of this order; it turns the
+  // heading steadily, which loops far apart must be free to undo.
+  double yaw_rate_error_dps = 0.1;  // yaw-rate error, deg/s
   double floor_m = 0.01;
 };
 

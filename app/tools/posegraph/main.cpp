@@ -58,7 +58,7 @@ least the floor, heading the loop sigma):
                            to their nearest nodes by the odometry between
   --loop-nodes             every frame a loop names gets a node instead
   --odometry-scale-error R relative distance error, 0.0001 to 1; default 0.01
-  --yaw-rate-error DPS     yaw-rate error in deg/s, 0.0001 to 10; default 0.05
+  --yaw-rate-error DPS     yaw-rate error in deg/s, 0.0001 to 10; default 0.1
   --loop-sigma-floor M     least position sigma of a loop, 0.001 to 10; default 0.05
   --loop-yaw-sigma DEG     heading sigma of a loop, 0.01 to 90; default 1
   --robust-scales LIST     Cauchy scales of the robust stages on the loops, in
