@@ -9,6 +9,7 @@
 #include <span>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include "dbc/markloop_messages.hpp"
 
@@ -19,7 +20,7 @@ namespace {
 using Field = std::pair<std::string_view, double>;
 
 template <typename Message>
-void print(const Message& message, std::uint8_t counter, std::initializer_list<Field> fields) {
+void print(const Message& message, std::uint8_t counter, std::span<const Field> fields) {
   std::array<std::uint8_t, 8> bytes{};
   const std::uint8_t length = encode(message, counter, std::span<std::uint8_t, 8>{bytes});
   std::printf("0x%03X ", static_cast<unsigned>(Message::kId));
@@ -28,6 +29,11 @@ void print(const Message& message, std::uint8_t counter, std::initializer_list<F
     std::printf(" %.*s=%.6f", static_cast<int>(name.size()), name.data(), value);
   }
   std::printf("\n");
+}
+
+template <typename Message>
+void print(const Message& message, std::uint8_t counter, std::initializer_list<Field> fields) {
+  print(message, counter, std::span<const Field>(fields.begin(), fields.size()));
 }
 
 double raw(auto value) {
@@ -145,72 +151,37 @@ void print_status_pages() {
   status.odometry_scale = 1.01234;
   status.odometry_scale_error = 0.00042;
   status.odometry_scale_valid = true;
+  // Every page carries the state and the fault bits, then its own signals.
   std::uint8_t counter = 0;
+  const auto print_page = [&](std::initializer_list<Field> own) {
+    const std::uint8_t c = counter++;
+    std::vector<Field> fields = {{"StatusAliveCounter", c},
+                                 {"StatusPage", raw(status.status_page)},
+                                 {"SystemState", raw(SystemState::Running)},
+                                 {"FaultCameraLost", 1},
+                                 {"FaultOdometryTimeout", 0},
+                                 {"FaultBusError", 0},
+                                 {"FaultOverrun", 1}};
+    fields.insert(fields.end(), own);
+    print(status, c, std::span<const Field>(fields));
+  };
   for (const StatusPage page : Status::kPages) {
     status.status_page = page;
-    const double p = raw(page);
-    const std::uint8_t c = counter++;
     switch (page) {
       case StatusPage::Processing:
-        print(status, c,
-              {{"StatusAliveCounter", c},
-               {"StatusPage", p},
-               {"SystemState", raw(SystemState::Running)},
-               {"FaultCameraLost", 1},
-               {"FaultOdometryTimeout", 0},
-               {"FaultBusError", 0},
-               {"FaultOverrun", 1},
-               {"FramesProcessed", 987654321},
-               {"DatabaseFill", 37.5}});
+        print_page({{"FramesProcessed", 987654321}, {"DatabaseFill", 37.5}});
         break;
       case StatusPage::Timing:
-        print(status, c,
-              {{"StatusAliveCounter", c},
-               {"StatusPage", p},
-               {"SystemState", raw(SystemState::Running)},
-               {"FaultCameraLost", 1},
-               {"FaultOdometryTimeout", 0},
-               {"FaultBusError", 0},
-               {"FaultOverrun", 1},
-               {"FramesDropped", 4321},
-               {"LoopTimeMax", 8.76}});
+        print_page({{"FramesDropped", 4321}, {"LoopTimeMax", 8.76}});
         break;
       case StatusPage::Database:
-        print(status, c,
-              {{"StatusAliveCounter", c},
-               {"StatusPage", p},
-               {"SystemState", raw(SystemState::Running)},
-               {"FaultCameraLost", 1},
-               {"FaultOdometryTimeout", 0},
-               {"FaultBusError", 0},
-               {"FaultOverrun", 1},
-               {"LandmarkCount", 262144},
-               {"SequenceCount", 1000001}});
+        print_page({{"LandmarkCount", 262144}, {"SequenceCount", 1000001}});
         break;
       case StatusPage::Perception:
-        print(status, c,
-              {{"StatusAliveCounter", c},
-               {"StatusPage", p},
-               {"SystemState", raw(SystemState::Running)},
-               {"FaultCameraLost", 1},
-               {"FaultOdometryTimeout", 0},
-               {"FaultBusError", 0},
-               {"FaultOverrun", 1},
-               {"FaultCameraBlind", 1},
-               {"FramesBlind", 3000000000.0}});
+        print_page({{"FaultCameraBlind", 1}, {"FramesBlind", 3000000000.0}});
         break;
       case StatusPage::Odometry:
-        print(status, c,
-              {{"StatusAliveCounter", c},
-               {"StatusPage", p},
-               {"SystemState", raw(SystemState::Running)},
-               {"FaultCameraLost", 1},
-               {"FaultOdometryTimeout", 0},
-               {"FaultBusError", 0},
-               {"FaultOverrun", 1},
-               {"OdometryScale", 1.01234},
-               {"OdometryScaleError", 0.00042},
-               {"OdometryScaleValid", 1}});
+        print_page({{"OdometryScale", 1.01234}, {"OdometryScaleError", 0.00042}, {"OdometryScaleValid", 1}});
         break;
     }
   }
