@@ -267,18 +267,18 @@ void use_camera_scale(Run& r) {
     if (!r.o.can_out.empty()) std::printf("odometry scale by the camera: none in the ECU's log\n");
     return;
   }
-  const double sigma =
-      std::hypot(camera->standard_error / (camera->scale * camera->scale), r.o.camera_scale_floor);
-  std::printf("odometry scale by the camera: %.5f +- %.5f%s", camera->scale, camera->standard_error,
-              r.o.camera_scale && r.o.solver.estimate_scale ? "" : " (not used)\n");
-  if (!r.o.camera_scale || !r.o.solver.estimate_scale) return;
-  if (!(std::abs(1.0 / camera->scale - 1.0) <= kScaleBound)) {
+  std::printf("odometry scale by the camera: %.5f +- %.5f", camera->scale, camera->standard_error);
+  const double mean = 1.0 / camera->scale - 1.0;
+  if (!r.o.camera_scale || !r.o.solver.estimate_scale) {
+    std::printf(" (not used)\n");
+  } else if (!(std::abs(mean) <= kScaleBound)) {
     std::printf(" (not used: beyond the %.0f %% the solver allows)\n", 100.0 * kScaleBound);
-    return;
+  } else {
+    r.o.solver.scale_prior_mean = mean;
+    r.o.solver.scale_prior_sigma =
+        std::hypot(camera->standard_error / (camera->scale * camera->scale), r.o.camera_scale_floor);
+    std::printf("; prior on s %+.4f +- %.4f\n", mean, r.o.solver.scale_prior_sigma);
   }
-  r.o.solver.scale_prior_mean = 1.0 / camera->scale - 1.0;
-  r.o.solver.scale_prior_sigma = sigma;
-  std::printf("; prior on s %+.4f +- %.4f\n", r.o.solver.scale_prior_mean, sigma);
 }
 
 void corrupt(Run& r) {
