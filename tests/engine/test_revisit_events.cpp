@@ -5,7 +5,9 @@
 #include <catch2/catch_test_macros.hpp>
 
 #include <cmath>
+#include <cstdint>
 #include <numbers>
+#include <utility>
 #include <vector>
 
 #include "app/tools/replay/revisit_events.hpp"
@@ -192,4 +194,125 @@ TEST_CASE("the tally counts events by kind and length and spreads the closure di
   CHECK(t.closure_long.count == 10);
   CHECK(t.closure_long.median_m == Approx(65.0));
   CHECK(t.closure_long.p90_m == Approx(100.0));
+}
+
+namespace {
+
+// The views of a marking at (x, y) from every frame of `d` in which it lies
+// in view (anywhere ahead within 40 m): the area counted as seen is
+// mark_shared_markings's to apply.
+void add_views(const Drive& d, std::uint32_t marking, double x, double y, std::size_t first_frame,
+               std::size_t end_frame, std::vector<MarkingView>& views) {
+  for (std::size_t f = first_frame; f < end_frame && f < d.poses.size(); ++f) {
+    const Pose2 at = compose(inverse(d.poses[f]), Pose2{x, y, 0.0});
+    if (at.x > 0.0 && at.x < 40.0) views.push_back({f, marking, at.x, at.y});
+  }
+}
+
+// Distance driven to the first frame at `p`.
+double travelled_to(const Drive& d, const Pose2& p) {
+  double metres = 0.0;
+  for (std::size_t i = 1; i < d.poses.size(); ++i) {
+    if (std::hypot(d.poses[i - 1].x - p.x, d.poses[i - 1].y - p.y) < 1e-6) return metres;
+    metres += std::hypot(d.poses[i].x - d.poses[i - 1].x, d.poses[i].y - d.poses[i - 1].y);
+  }
+  return metres;
+}
+
+}  // namespace
+
+TEST_CASE("an event's shared markings: seen ahead on both visits, passed where last seen") {
+  Drive d;
+  d.straight(0, 0, 0, 300).away(40).straight(0, 1, 0, 200);
+  auto events = d.events();
+  REQUIRE(events.size() == 1);
+  const std::size_t second_visit = events[0].first_frame;
+  REQUIRE(second_visit == 700);
+  std::vector<MarkingView> views;
+  // On the road, seen on both visits: last seen 5.5 m ahead or more, so at
+  // 44, 94 and 144 m of the second visit (one metre a frame).
+  for (const auto& [id, x] : {std::pair{1u, 50.0}, {2u, 100.0}, {3u, 150.0}})
+    add_views(d, id, x, 1.0, 0, d.poses.size(), views);
+  // Only on the second visit: new paint is nothing shared.
+  add_views(d, 4, 70.0, 1.0, second_visit, d.poses.size(), views);
+  // Beside the road (7 m): in view, but out of the area the ECU observes.
+  add_views(d, 5, 80.0, 8.0, 0, d.poses.size(), views);
+  // Beyond the truth: ignored.
+  views.push_back({d.poses.size() + 5, 6, 10.0, 0.0});
+  mark_shared_markings(events, d.poses, d.times, views);
+  const RevisitEvent& e = events[0];
+  REQUIRE(e.shared_markings);
+  CHECK(*e.shared_markings == 3);
+  REQUIRE(e.second_shared_m);
+  REQUIRE(e.third_shared_m);
+  CHECK(*e.second_shared_m == Approx(94.0));
+  CHECK(*e.third_shared_m == Approx(144.0));
+
+  // With the third marking gone there is no third.
+  std::erase_if(views, [](const MarkingView& v) { return v.marking == 3; });
+  mark_shared_markings(events, d.poses, d.times, views);
+  CHECK(*events[0].shared_markings == 2);
+  CHECK_FALSE(events[0].third_shared_m);
+}
+
+TEST_CASE("a marking passed just before a turn onto the old road counts at 0 m") {
+  // The old road runs east along y = 0; the car comes back from the south
+  // along x = 20 and turns onto it. The crossing's marking at (20, 0) was
+  // seen from the old road, and is last seen 5.5 m or more ahead, before
+  // the car comes within 6 m of the old road.
+  Drive d;
+  d.straight(0, 0, 0, 300).away(40).straight(20, -60, kPi / 2.0, 60).straight(20, 1, 0, 100);
+  auto events = d.events();
+  REQUIRE(events.size() == 1);
+  std::vector<MarkingView> views;
+  add_views(d, 1, 20.0, 0.0, 0, d.poses.size(), views);
+  add_views(d, 2, 60.0, 0.5, 0, d.poses.size(), views);
+  mark_shared_markings(events, d.poses, d.times, views);
+  REQUIRE(events[0].second_shared_m);
+  CHECK(*events[0].shared_markings == 2);
+  // The second: last seen from x = 54, 33 m of driving after the event's
+  // first frame (y = -5: 5 m north, then 1 m of the jog, then 34 m east).
+  CHECK(*events[0].second_shared_m ==
+        Approx(travelled_to(d, {54.0, 1.0}) - travelled_to(d, d.poses[events[0].first_frame])));
+}
+
+TEST_CASE("only a marking's first pass in an event counts") {
+  // Laps two and three of a circle are one event; markings 40 m and 80 m
+  // ahead of its first frame, seen on every lap, are passed on lap two.
+  Drive d;
+  d.circle(60.0, 3.0);
+  auto events = d.events();
+  REQUIRE(events.size() == 1);
+  const Pose2 start = d.poses[events[0].first_frame];
+  const double step = 1.0 / 60.0;  // radians per metre of the circle
+  std::vector<MarkingView> views;
+  for (const auto& [id, metres] : {std::pair{1u, 40.0}, {2u, 80.0}}) {
+    const double a = std::atan2(start.y, start.x) + metres * step;
+    add_views(d, id, 60.0 * std::cos(a), 60.0 * std::sin(a), 0, d.poses.size(), views);
+  }
+  mark_shared_markings(events, d.poses, d.times, views);
+  REQUIRE(events[0].second_shared_m);
+  // Last seen at least 5.5 m ahead: about 74 m in, not a lap later.
+  CHECK(*events[0].second_shared_m == Approx(74.0).margin(1.5));
+}
+
+TEST_CASE("the tally spreads the second and third shared markings of long events") {
+  std::vector<RevisitEvent> events(4);
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    events[i].length_m = 100.0;
+    events[i].shared_markings = 3;
+    events[i].second_shared_m = 5.0 * static_cast<double>(i + 1);  // 5 .. 20 m
+    events[i].third_shared_m = 10.0 * static_cast<double>(i + 1);  // 10 .. 40 m
+  }
+  events[3].third_shared_m.reset();  // two shared only
+  events[2].length_m = 20.0;         // short: not in the long events' figures
+  events.push_back(RevisitEvent{});  // shared markings unknown
+  events.back().length_m = 100.0;
+  const RevisitTally t = tally_revisit_events(events);
+  CHECK(t.shared_known_long == 3);
+  CHECK(t.second_shared_long.count == 3);  // 5, 10, 20
+  CHECK(t.second_shared_long.median_m == Approx(10.0));
+  CHECK(t.third_shared_long.count == 2);  // 10, 20
+  CHECK(t.third_shared_long.median_m == Approx(15.0));
+  CHECK(t.third_shared_long.p90_m == Approx(20.0));
 }

@@ -49,6 +49,15 @@ DriveFigures load(const std::string& path) {
   return *d;
 }
 
+// An event with the markings it shares with the older visit (markloop-eval
+// with the markings in view).
+std::string event_sharing(int first, const char* shared, const char* second, const char* third) {
+  std::string e = event(first, 100.0, "same", "null");
+  e.pop_back();
+  return e + ",\"shared_markings\":" + shared + ",\"second_shared_m\":" + second +
+         ",\"third_shared_m\":" + third + "}";
+}
+
 }  // namespace
 
 TEST_CASE("two drives' eval.json files sum into the table's numbers") {
@@ -82,6 +91,27 @@ TEST_CASE("two drives' eval.json files sum into the table's numbers") {
   // Closed at 20, 40, 60 m.
   CHECK(s.tally.closure_long.median_m == Approx(40.0));
   CHECK(s.tally.closure_long.p90_m == Approx(60.0));
+}
+
+TEST_CASE("the markings events share with the older visit are summed over drives") {
+  const std::string a = write_json("shared-a.json", eval_json(1000.0, 0, 0, 0.0,
+                                                              event_sharing(1, "4", "10.0", "30.0") + "," +
+                                                                  event_sharing(200, "2", "5.0", "null")));
+  const std::string b = write_json("shared-b.json", eval_json(1000.0, 0, 0, 0.0,
+                                                              event_sharing(1, "5", "20.0", "50.0") + "," +
+                                                                  event(300, 100.0, "same", "null")));
+  const DrivesSummary s = summarise_drives({load(a), load(b)});
+  // The event without them (an older eval.json's) is not counted.
+  CHECK(s.tally.shared_known_long == 3);
+  CHECK(s.tally.second_shared_long.count == 3);
+  CHECK(s.tally.second_shared_long.median_m == Approx(10.0));
+  CHECK(s.tally.third_shared_long.count == 2);
+  CHECK(s.tally.third_shared_long.median_m == Approx(40.0));
+  const std::string bad =
+      write_json("shared-bad.json", eval_json(1.0, 0, 0, 0.0, event_sharing(1, "2.5", "1.0", "null")));
+  const Result<DriveFigures> refused = load_drive_figures(bad);
+  REQUIRE_FALSE(refused);
+  CHECK_THAT(refused.message(), ContainsSubstring("\"shared_markings\" is not a whole number"));
 }
 
 TEST_CASE("a file that is not an eval.json of this markloop-eval is refused by name") {

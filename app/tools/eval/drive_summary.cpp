@@ -37,6 +37,16 @@ Result<replay::RevisitEvent> event_of(const JsonValue& e) {
   event.kind = *k;
   if (const JsonValue* closed = e.find("closed_at_m"); closed && closed->is(Type::Number))
     event.closed_at_m = closed->number;
+  // Shared markings: absent from runs without the markings in view.
+  if (e.find("shared_markings") != nullptr) {
+    const Result<double> shared = number_at(e, "shared_markings", true);
+    if (!shared) return shared.error();
+    event.shared_markings = static_cast<std::size_t>(*shared);
+    if (const JsonValue* second = e.find("second_shared_m"); second && second->is(Type::Number))
+      event.second_shared_m = second->number;
+    if (const JsonValue* third = e.find("third_shared_m"); third && third->is(Type::Number))
+      event.third_shared_m = third->number;
+  }
   return event;
 }
 

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "app/common/cli.hpp"
@@ -372,6 +373,7 @@ struct Run {
   std::vector<replay::RevisitEvent> revisits;  // in the truth, closed by the ECU's detections
   replay::RevisitTally revisit_tally;
   std::vector<VisibleMarking> visible;
+  bool have_visible = false;
   std::vector<DetectionRecord> detections;
   std::string marking_note;  // why the markings were not judged
   bool have_markings = false;
@@ -418,11 +420,16 @@ void load_can_log(Run& r) {
 // default file is absent.
 void load_ecu_outputs(Run& r) {
   const Options& o = r.o;
+  // The markings in view judge the detections, and tell what each revisit
+  // shares with the older visit.
+  const std::string visible = std::filesystem::path(o.dir) / "visible.csv";
+  r.have_visible = std::filesystem::exists(visible);
+  if (r.have_visible) r.visible = or_fail(load_visible(visible, r.route.size()));
   if (!o.detections_given && !std::filesystem::exists(o.detections)) {
     r.marking_note = o.detections + " not found: marking detection not evaluated";
   } else {
     r.detections = or_fail(load_detections(o.detections, r.route.size()));
-    r.visible = or_fail(load_visible(std::filesystem::path(o.dir) / "visible.csv", r.route.size()));
+    if (!r.have_visible) r.visible = or_fail(load_visible(visible, r.route.size()));
     r.have_markings = true;
   }
   if (!o.landmarks_given && !std::filesystem::exists(o.landmarks)) {
@@ -434,11 +441,29 @@ void load_ecu_outputs(Run& r) {
   r.have_passes = r.have_landmarks && r.have_markings;
 }
 
+// Each marking in view where it lies from the car (one of the world's
+// markings: a view of an unknown one is left out).
+std::vector<replay::MarkingView> marking_views(const Run& r) {
+  std::unordered_map<std::uint32_t, const WorldMarking*> by_id;
+  for (const WorldMarking& m : r.world) by_id.emplace(m.id, &m);
+  std::vector<replay::MarkingView> views;
+  views.reserve(r.visible.size());
+  for (const VisibleMarking& v : r.visible) {
+    const auto m = by_id.find(v.id);
+    if (m == by_id.end() || v.frame >= r.route.size()) continue;
+    const Pose2& car = r.route[v.frame];
+    const Pose2 at = compose(inverse(car), Pose2{m->second->x, m->second->y, 0.0});
+    views.push_back({v.frame, v.id, at.x, at.y});
+  }
+  return views;
+}
+
 void score(Run& r) {
   const replay::TruthJudge judge(r.route, r.o.tolerance, kRevisitSeparation_m);
   r.loops = score_loops(judge, r.times, r.log.loops);
   r.revisits = replay::find_revisit_events(r.route, r.times);
   replay::close_revisit_events(r.revisits, r.route, closing_detections(r.loops, r.log.loops, r.times));
+  if (r.have_visible) replay::mark_shared_markings(r.revisits, r.route, r.times, marking_views(r));
   r.revisit_tally = replay::tally_revisit_events(r.revisits);
   if (r.have_markings) r.markings = score_markings(r.visible, r.detections);
   if (r.have_landmarks) r.placed = score_landmarks(r.world, r.route, r.landmarks);

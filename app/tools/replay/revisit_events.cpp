@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <unordered_map>
 
@@ -83,6 +84,57 @@ RevisitKind event_kind(std::span<const FrameKind> kinds, const std::vector<doubl
   for (const RevisitKind k : {RevisitKind::SameDirection, RevisitKind::OppositeDirection})
     if (weight[static_cast<std::size_t>(k)] > 0.5 * total) return k;
   return RevisitKind::Crossing;
+}
+
+bool seen(const MarkingView& v) {
+  return v.ahead_m >= kSeenNearest_m && v.ahead_m <= kSeenFarthest_m && std::abs(v.left_m) <= kSeenSide_m;
+}
+
+// The views of markings seen, in frame order, and the first frame each
+// marking was seen.
+struct SeenMarkings {
+  std::vector<MarkingView> views;
+  std::unordered_map<std::uint32_t, std::size_t> first_frame;
+};
+
+SeenMarkings seen_markings(std::span<const MarkingView> views, std::size_t frames) {
+  SeenMarkings s;
+  for (const MarkingView& v : views) {
+    if (v.frame >= frames || !seen(v)) continue;
+    s.views.push_back(v);
+    const auto [it, added] = s.first_frame.try_emplace(v.marking, v.frame);
+    if (!added) it->second = std::min(it->second, v.frame);
+  }
+  std::stable_sort(s.views.begin(), s.views.end(),
+                   [](const MarkingView& a, const MarkingView& b) { return a.frame < b.frame; });
+  return s;
+}
+
+// The frame at which each marking seen in frames `from` to `to` and already
+// seen kRevisitMinAge_s before `event_start_s` was passed: the last frame of
+// its first run of sightings there (a long event may pass it again).
+std::vector<std::size_t> first_passes(const SeenMarkings& seen, std::span<const double> times,
+                                      std::size_t from, std::size_t to, double event_start_s) {
+  struct Pass {
+    std::size_t last = 0;
+    bool over = false;
+  };
+  std::unordered_map<std::uint32_t, Pass> passes;
+  const auto first = std::lower_bound(seen.views.begin(), seen.views.end(), from,
+                                      [](const MarkingView& v, std::size_t f) { return v.frame < f; });
+  for (auto v = first; v != seen.views.end() && v->frame <= to; ++v) {
+    if (times[seen.first_frame.at(v->marking)] > event_start_s - kRevisitMinAge_s) continue;
+    const auto [it, added] = passes.try_emplace(v->marking, Pass{v->frame, false});
+    Pass& p = it->second;
+    if (added || p.over) continue;
+    if (times[v->frame] - times[p.last] < kRevisitMaxGap_s)
+      p.last = v->frame;
+    else
+      p.over = true;
+  }
+  std::vector<std::size_t> frames;
+  for (const auto& [marking, p] : passes) frames.push_back(p.last);
+  return frames;
 }
 
 ClosureDistances closure_distances(std::vector<double> values) {
@@ -169,20 +221,49 @@ void close_revisit_events(std::vector<RevisitEvent>& events, std::span<const Pos
   }
 }
 
+void mark_shared_markings(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
+                          std::span<const double> times, std::span<const MarkingView> views) {
+  const std::size_t frames = std::min(poses.size(), times.size());
+  const SeenMarkings seen = seen_markings(views, frames);
+  const std::vector<double> travelled = travelled_distances(poses.first(frames));
+  for (RevisitEvent& e : events) {
+    if (e.last_frame >= frames || e.first_frame > e.last_frame) continue;
+    const double start = travelled[e.first_frame];
+    const auto lead = static_cast<std::size_t>(
+        std::lower_bound(travelled.begin(), travelled.begin() + static_cast<std::ptrdiff_t>(e.first_frame),
+                         start - kSharedLead_m) -
+        travelled.begin());
+    std::vector<double> at;
+    for (const std::size_t frame : first_passes(seen, times, lead, e.last_frame, times[e.first_frame]))
+      at.push_back(std::max(0.0, travelled[frame] - start));
+    std::sort(at.begin(), at.end());
+    e.shared_markings = at.size();
+    e.second_shared_m = at.size() >= 2 ? std::optional<double>(at[1]) : std::nullopt;
+    e.third_shared_m = at.size() >= 3 ? std::optional<double>(at[2]) : std::nullopt;
+  }
+}
+
 RevisitTally tally_revisit_events(std::span<const RevisitEvent> events) {
   RevisitTally t;
-  std::vector<double> closure_long, closure_all;
+  std::vector<double> closure_long, closure_all, second_long, third_long;
   for (const RevisitEvent& e : events) {
     const bool long_event = e.length_m >= kLongRevisit_m;
     count(t.by_kind[static_cast<std::size_t>(e.kind)][long_event ? 1 : 0], e);
     count(long_event ? t.longer : t.shorter, e);
     count(t.all, e);
+    if (long_event && e.shared_markings) {
+      ++t.shared_known_long;
+      if (e.second_shared_m) second_long.push_back(*e.second_shared_m);
+      if (e.third_shared_m) third_long.push_back(*e.third_shared_m);
+    }
     if (!e.closed_at_m) continue;
     closure_all.push_back(*e.closed_at_m);
     if (long_event) closure_long.push_back(*e.closed_at_m);
   }
   t.closure_long = closure_distances(std::move(closure_long));
   t.closure_all = closure_distances(std::move(closure_all));
+  t.second_shared_long = closure_distances(std::move(second_long));
+  t.third_shared_long = closure_distances(std::move(third_long));
   return t;
 }
 

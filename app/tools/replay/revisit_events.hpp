@@ -13,6 +13,7 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -30,6 +31,16 @@ inline constexpr double kRevisitMaxGap_s = 3.0;
 inline constexpr double kAlongRoadTolerance_deg = 45.0;
 // The events the targets are read on: at least this long.
 inline constexpr double kLongRevisit_m = 50.0;
+// Markings passed this far before an event's first frame count as the
+// event's: the car sees an intersection before it enters the old road.
+inline constexpr double kSharedLead_m = 60.0;
+// A marking in view is seen when its centre lies in the ground area the
+// ECU observes by default: this far ahead of the car (nearer ones are cut
+// by the view's edge, farther ones placed too poorly to use), and at most
+// this far to either side (the detector's bird's-eye view).
+inline constexpr double kSeenNearest_m = 5.5;
+inline constexpr double kSeenFarthest_m = 16.0;
+inline constexpr double kSeenSide_m = 6.0;
 
 // What a revisit frame does on the old road. Per frame: SameDirection when
 // one of the older frames it is near has a heading within
@@ -58,6 +69,15 @@ struct RevisitEvent {
   // bus, and that detection's query frame.
   std::optional<double> closed_at_m;
   std::optional<std::size_t> closing_query_frame;
+  // Set by mark_shared_markings: how many markings the car passes in the
+  // event (or kSharedLead_m before it) that were in view at least
+  // kRevisitMinAge_s before the event, and the distance driven into the
+  // event when it had passed the second and the third of them (0 when
+  // before the event). No place of two or three markings can close the
+  // event earlier.
+  std::optional<std::size_t> shared_markings;
+  std::optional<double> second_shared_m;
+  std::optional<double> third_shared_m;
 };
 
 // `times` in seconds, one per pose, increasing. Events in drive order.
@@ -80,6 +100,22 @@ struct ClosingDetection {
 void close_revisit_events(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
                           std::span<const ClosingDetection> detections);
 
+// A marking in view in a frame (markloop-eval: the simulator's visible.csv)
+// and where its centre lies from the car.
+struct MarkingView {
+  std::size_t frame = 0;
+  std::uint32_t marking = 0;
+  double ahead_m = 0.0;
+  double left_m = 0.0;
+};
+
+// Sets every event's shared markings from the markings in view (those in
+// the area kSeen* describe). A marking is passed at the last frame of the event
+// (or of its lead) in which it is seen. `poses` and `times` are the truth the events were found in;
+// views beyond them are ignored.
+void mark_shared_markings(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
+                          std::span<const double> times, std::span<const MarkingView> views);
+
 // Closed over total events of one kind and length bucket.
 struct RevisitCount {
   std::size_t closed = 0;
@@ -101,6 +137,11 @@ struct RevisitTally {
   RevisitCount shorter, longer, all;  // over every kind
   ClosureDistances closure_long;      // events of at least kLongRevisit_m
   ClosureDistances closure_all;
+  // Events of at least kLongRevisit_m whose shared markings are known, and
+  // where their second and third were passed (over those that have one).
+  std::size_t shared_known_long = 0;
+  ClosureDistances second_shared_long;
+  ClosureDistances third_shared_long;
 };
 
 RevisitTally tally_revisit_events(std::span<const RevisitEvent> events);

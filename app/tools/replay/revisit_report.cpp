@@ -1,5 +1,6 @@
 #include "app/tools/replay/revisit_report.hpp"
 
+#include <optional>
 #include <string>
 
 namespace markloop::replay {
@@ -39,6 +40,22 @@ void print_closure(std::FILE* out, const char* name, const ClosureDistances& d) 
   std::fprintf(out, "  %-40s %.1f / %.1f m (%zu closed)\n", name, d.median_m, d.p90_m, d.count);
 }
 
+void print_shared(std::FILE* out, const char* name, const ClosureDistances& d, std::size_t events) {
+  if (d.count == 0) {
+    std::fprintf(out, "    %-38s - (no event has one)\n", name);
+    return;
+  }
+  std::fprintf(out, "    %-38s %.1f / %.1f m (%zu of %zu events)\n", name, d.median_m, d.p90_m, d.count,
+               events);
+}
+
+void json_optional(std::FILE* out, const char* name, const std::optional<double>& v) {
+  if (v)
+    std::fprintf(out, ",\"%s\":%.3f", name, *v);
+  else
+    std::fprintf(out, ",\"%s\":null", name);
+}
+
 void json_count(std::FILE* out, const char* name, const RevisitCount& c) {
   std::fprintf(out, "\"%s\":{\"closed\":%zu,\"total\":%zu}", name, c.closed, c.total);
 }
@@ -71,6 +88,12 @@ void print_revisit_tally(std::FILE* out, const RevisitTally& t) {
   print_row(out, "all", t.shorter, t.longer);
   print_closure(out, "closed at, median / p90 (50 m or more)", t.closure_long);
   print_closure(out, "closed at, median / p90 (all)", t.closure_all);
+  if (t.shared_known_long == 0) return;
+  // Where a place of two or three markings could have closed them at the earliest.
+  std::fprintf(out, "  markings shared with the older visit, passed (events of 50 m or more: %zu):\n",
+               t.shared_known_long);
+  print_shared(out, "second, median / p90", t.second_shared_long, t.shared_known_long);
+  print_shared(out, "third, median / p90", t.third_shared_long, t.shared_known_long);
 }
 
 void print_revisit_events(std::FILE* out, std::span<const RevisitEvent> events, std::size_t limit) {
@@ -79,9 +102,14 @@ void print_revisit_events(std::FILE* out, std::span<const RevisitEvent> events, 
     std::fprintf(out, "    event at frame %zu (to %zu): %.1f m, %s, ", e.first_frame, e.last_frame,
                  e.length_m, kind_label(e.kind));
     if (e.closed_at_m)
-      std::fprintf(out, "closed at %.1f m (query frame %zu)\n", *e.closed_at_m, *e.closing_query_frame);
+      std::fprintf(out, "closed at %.1f m (query frame %zu)", *e.closed_at_m, *e.closing_query_frame);
     else
-      std::fprintf(out, "never closed\n");
+      std::fprintf(out, "never closed");
+    if (e.third_shared_m)
+      std::fprintf(out, "; third shared marking passed at %.1f m", *e.third_shared_m);
+    else if (e.shared_markings)
+      std::fprintf(out, "; %zu shared markings", *e.shared_markings);
+    std::fputc('\n', out);
   }
   if (events.size() > limit) std::fprintf(out, "    ... %zu more (all in --json)\n", events.size() - limit);
 }
@@ -105,6 +133,10 @@ void json_revisit_tally(std::FILE* out, const RevisitTally& t) {
   json_closure(out, "closure_longer", t.closure_long);
   std::fputc(',', out);
   json_closure(out, "closure_all", t.closure_all);
+  std::fprintf(out, ",\"shared_known_longer\":%zu,", t.shared_known_long);
+  json_closure(out, "second_shared_longer", t.second_shared_long);
+  std::fputc(',', out);
+  json_closure(out, "third_shared_longer", t.third_shared_long);
   std::fputc('}', out);
 }
 
@@ -121,9 +153,15 @@ void json_revisits(std::FILE* out, std::span<const RevisitEvent> events, const R
         i ? "," : "", e.first_frame, e.last_frame, e.start_m, e.length_m,
         std::string(revisit_kind_name(e.kind)).c_str());
     if (e.closed_at_m)
-      std::fprintf(out, "%.3f,\"closing_query_frame\":%zu}", *e.closed_at_m, *e.closing_query_frame);
+      std::fprintf(out, "%.3f,\"closing_query_frame\":%zu", *e.closed_at_m, *e.closing_query_frame);
     else
-      std::fprintf(out, "null,\"closing_query_frame\":null}");
+      std::fprintf(out, "null,\"closing_query_frame\":null");
+    if (e.shared_markings) {
+      std::fprintf(out, ",\"shared_markings\":%zu", *e.shared_markings);
+      json_optional(out, "second_shared_m", e.second_shared_m);
+      json_optional(out, "third_shared_m", e.third_shared_m);
+    }
+    std::fputc('}', out);
   }
   std::fprintf(out, "],\"tally\":");
   json_revisit_tally(out, tally);
