@@ -455,6 +455,15 @@ constexpr Setting kSettings[] = {
      .description = "a place's labels must be rare enough: the sum over its markings of -log2 of "
                     "their label's share of the landmarks seen (crosswalks and stop lines, at every "
                     "intersection, say little); 0: any labels"},
+    {.key = "engine.place_max_residual_m",
+     .kind = K::kReal,
+     .member = member([](auto& c) -> auto& { return c.engine.match.place_max_residual_m; }),
+     .min = 0.001,
+     .max = 100.0,
+     .unit = "m",
+     .section = S::kEngine,
+     .description = "a place's rigid fit must be at most this far off (RMS), and within "
+                    "engine.max_residual_m: a place checks no order and no distances before its fit"},
     {.key = "engine.place_window_m",
      .kind = K::kReal,
      .member = member([](auto& c) -> auto& { return c.engine.match.place_window_m; }),

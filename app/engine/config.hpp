@@ -106,6 +106,10 @@ struct MatchConfig {
   // A place's labels must be rare enough: the sum over its pairs of -log2
   // of each label's share of the landmarks seen so far (0: any labels).
   double place_min_bits = 0.0;
+  // A place's rigid fit must be at most this far off (RMS), and within
+  // max_residual_m: a constellation has no order and no distances checked
+  // before its fit, and a far pair shifted to a look-alike fits roughly.
+  double place_max_residual_m = 0.5;
   // Places are matched only where the two visits lie at most this far apart
   // along the drive: further, the drift limits admit look-alikes.
   double place_within_m = 2500.0;

@@ -26,6 +26,11 @@ constexpr double kRivalSlack = 3.0;
 // The query's landmarks must spread at least this far: side by side markings
 // of one row leave the rotation unknown.
 constexpr double kMinSpread_m = 3.0;
+// Landmarks of one label closer than this (or joined by a chain of such)
+// may be pieces of one marking (a crosswalk's stripes detected in groups):
+// pieces in a row fit any other such row shifted along it, so one marking
+// is paired once.
+constexpr double kPieces_m = 3.0;
 
 Eigen::Vector2d point(const Landmark& l) {
   return {l.x, l.y};
@@ -68,6 +73,7 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
   const Landmark& newest = recent_.back();
   if (!newest.has_car_pose || recent_.size() < config_.place_landmarks) return false;
   ++counters_.queries;
+  group_pieces();
   std::size_t found = 0;
   bool overflow = false;
   database.for_each_landmark_near(newest.label, newest.x, newest.y,
@@ -124,6 +130,7 @@ bool PlaceMatcher::build(const SequenceDatabase& database, const Landmark& ancho
   // Newest first: the landmarks nearest the anchor are predicted best.
   for (std::size_t i = recent_.size() - 1; i-- > 0 && !h.pairs.full();) {
     const Landmark& q = recent_[i];
+    if (marking_paired(i, h)) continue;
     const double reach = (point(q) - point(newest)).norm();
     const Landmark* stored = partner(database, q, point(q) + shift, kPredictAbs_m + kPredictRel * reach, h);
     if (stored != nullptr) (void)h.pairs.push_back({&q, stored});
@@ -140,6 +147,29 @@ bool PlaceMatcher::build(const SequenceDatabase& database, const Landmark& ancho
   for (const Pair& p : h.pairs) newest_stored = std::max(newest_stored, p.stored->station);
   h.driven_m = newest.station - newest_stored;
   return true;
+}
+
+void PlaceMatcher::group_pieces() {
+  // Union of same-label landmarks within kPieces_m: the smallest index of
+  // each chain names it (few landmarks: a few hundred comparisons).
+  for (std::size_t i = 0; i < recent_.size(); ++i) marking_[i] = static_cast<std::uint8_t>(i);
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (std::size_t i = 0; i < recent_.size(); ++i)
+      for (std::size_t j = i + 1; j < recent_.size(); ++j) {
+        if (recent_[i].label != recent_[j].label || marking_[i] == marking_[j] ||
+            (point(recent_[i]) - point(recent_[j])).squaredNorm() >= kPieces_m * kPieces_m)
+          continue;
+        marking_[i] = marking_[j] = std::min(marking_[i], marking_[j]);
+        changed = true;
+      }
+  }
+}
+
+bool PlaceMatcher::marking_paired(std::size_t recent_index, const Hypothesis& h) const {
+  for (const Pair& p : h.pairs)
+    if (marking_[static_cast<std::size_t>(p.query - recent_.begin())] == marking_[recent_index]) return true;
+  return false;
 }
 
 const Landmark* PlaceMatcher::partner(const SequenceDatabase& database, const Landmark& query,
@@ -172,7 +202,7 @@ bool PlaceMatcher::fit_pairs(Hypothesis& h) const {
     }
     if (spread_sq < kMinSpread_m * kMinSpread_m) return false;
     h.fit = fit_rigid_2d({from.data(), n}, {to.data(), n});
-    if (h.fit.rms_residual <= config_.max_residual_m) return true;
+    if (h.fit.rms_residual <= std::min(config_.max_residual_m, config_.place_max_residual_m)) return true;
     if (n <= config_.place_landmarks) return false;
     // The worst pair goes, never the newest (pair 0): it is the hypothesis.
     const double c = std::cos(h.fit.transform.yaw), s = std::sin(h.fit.transform.yaw);

@@ -74,6 +74,11 @@ class PlaceMatcher {
   // newest's label) predicts, then fits them; false when too few or the fit
   // is poor.
   bool build(const SequenceDatabase& database, const Landmark& anchor, Hypothesis& h);
+  // Names each recent landmark's marking: same-label landmarks close enough
+  // to be its pieces share one (kPieces_m).
+  void group_pieces();
+  // Whether a piece of recent_[recent_index]'s marking is paired already.
+  bool marking_paired(std::size_t recent_index, const Hypothesis& h) const;
   const Landmark* partner(const SequenceDatabase& database, const Landmark& query, const Eigen::Vector2d& at,
                           double tolerance, const Hypothesis& h) const;
   // Drops the worst fitting pair while that brings the fit within the
@@ -94,7 +99,8 @@ class PlaceMatcher {
   double evidence_bits(const Hypothesis& h) const;
 
   MatchConfig config_;
-  FixedVector<Landmark, kMaxRecent> recent_;  // oldest first; the newest last
+  FixedVector<Landmark, kMaxRecent> recent_;        // oldest first; the newest last
+  std::array<std::uint8_t, kMaxRecent> marking_{};  // per recent landmark (group_pieces)
   static constexpr std::size_t kMaxHypotheses = 16;
   std::array<Hypothesis, kMaxHypotheses> hypotheses_{};
   PlaceCounters counters_;

@@ -56,6 +56,8 @@ const char* validate(const EngineConfig& c) {
     return "place landmarks must be 0 (off) or between 2 and 10";
   if (!finite_non_negative(c.match.place_within_m))
     return "place distance along the drive must be non-negative";
+  if (!finite_positive(c.match.place_max_residual_m))
+    return "place residual must be a positive number of metres";
   if (!finite_non_negative(c.match.place_min_bits) || c.match.place_min_bits > 1000.0)
     return "place evidence must lie between 0 and 1000 bits";
   if (!finite_positive(c.match.place_window_m) || !finite_positive(c.match.place_search_m))

@@ -29,7 +29,7 @@ struct Drive {
     std::normal_distribution<double> unit(0.0, 1.0);
     const double turn = bend_deg_per_m * step_m * std::numbers::pi / 180.0;
     std::vector<Pose2> markings;
-    for (Pose2 p; markings.size() * 12.0 < metres + 30.0;) {
+    for (Pose2 p; static_cast<double>(markings.size()) * 12.0 < metres + 30.0;) {
       markings.push_back(p);
       for (int i = 0; i < 12; ++i) p = compose(p, Pose2{1.0, 0.0, turn / step_m});
     }

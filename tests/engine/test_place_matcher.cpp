@@ -214,6 +214,50 @@ TEST_CASE("a place beyond the odometry's drift is not matched", "[engine][place]
   }
 }
 
+TEST_CASE("one marking seen in pieces is one pair, not a place", "[engine][place]") {
+  // A crosswalk the detector sees as three pieces 1.5 m apart across the
+  // road: in a row, they fit the same row shifted along it, so they count as
+  // one marking. Three separate markings 6 m apart are a place.
+  for (const double spacing : {1.5, 6.0}) {
+    INFO("spacing " << spacing);
+    std::vector<Mark> world;
+    for (int i = 0; i < 3; ++i)
+      world.push_back({100.0 + (spacing > 2 ? spacing * i : 0.0), -1.5 + 1.5 * i, 14});
+    SequenceEngine engine(place_config(3));
+    Car car(engine, world);
+    car.drive({{0, 0}, {200, 0}, {200, 100}, {-40, 100}, {-40, 0}, {200, 0}});
+    engine.flush(car.sink);
+    CHECK(judge(car, car.sink.events).wrong == 0);
+    if (spacing < 2)
+      CHECK(engine.place_counters().matches == 0);
+    else
+      CHECK(engine.place_counters().matches >= 1);
+  }
+}
+
+TEST_CASE("a place whose fit is off by more than the place residual is not matched", "[engine][place]") {
+  // The third marking lies 0.5 m further on when the car comes back (a
+  // look-alike's spacing): the fit is off by about 0.2 m.
+  for (const double limit : {0.5, 0.1}) {
+    INFO("place residual " << limit);
+    EngineConfig config = place_config(3);
+    config.match.place_max_residual_m = limit;
+    SequenceEngine engine(config);
+    std::vector<Mark> world = {{100, -1, 14}, {106, -1, 15}, {114, -1, 1}};
+    Car car(engine, world);
+    car.drive({{0, 0}, {200, 0}, {200, 100}, {-40, 100}, {-40, 0}});
+    world[2].x += 0.5;
+    car.drive({{-40, 0}, {200, 0}});
+    engine.flush(car.sink);
+    if (limit > 0.3) {
+      CHECK(car.sink.events.size() == 1);
+    } else {
+      CHECK(car.sink.events.empty());
+      CHECK(engine.place_counters().rejected_residual >= 1);
+    }
+  }
+}
+
 TEST_CASE("place matching settings are checked", "[engine][place]") {
   EngineConfig config;
   config.match.place_landmarks = 1;
@@ -221,6 +265,9 @@ TEST_CASE("place matching settings are checked", "[engine][place]") {
   config.match.place_landmarks = 3;
   CHECK(validate(config) == nullptr);
   config.match.place_window_m = 0;
+  CHECK(validate(config) != nullptr);
+  config.match.place_window_m = 60;
+  config.match.place_max_residual_m = 0;
   CHECK(validate(config) != nullptr);
 }
 

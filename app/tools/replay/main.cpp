@@ -83,6 +83,9 @@ engine (each value must lie in the range given):
   --place-bits B         a place's labels must be rare enough: the sum of
                          -log2 of each label's share of the landmarks seen,
                          0 to 1000; default 0 (any labels)
+  --place-residual M     a place's rigid fit must be at most this far off
+                         (RMS, and within --max-residual), 0.001 to 100 m;
+                         default 0.5
   --far-after M          visits further apart along the drive than this, 0
                          to 1000000 m, need a longer run (--far-run); default
                          2500
@@ -167,6 +170,7 @@ constexpr OptionSpec kOptions[] = {
     {"--place-distinct", "M", "no other place within this distance may fit as well"},
     {"--place-within", "M", "places only between visits this close along the drive"},
     {"--place-bits", "B", "least evidence of a place's labels, in bits"},
+    {"--place-residual", "M", "largest RMS residual of a place's fit"},
     {"--far-after", "M", "visits this far apart need a longer run"},
     {"--far-run", "M", "the run such a match needs"},
     {"--max-drift-rel", "R", "odometry prior, share of the distance driven"},
@@ -252,6 +256,9 @@ constexpr NumericOption kNumericOptions[] = {
     {"--place-bits",
      {0.0, 1000.0, "", false},
      [](Options& o, double v) { o.engine.match.place_min_bits = v; }},
+    {"--place-residual",
+     {0.001, 100.0, "metres", false},
+     [](Options& o, double v) { o.engine.match.place_max_residual_m = v; }},
     {"--far-after",
      {0.0, 1e6, "metres", false},
      [](Options& o, double v) { o.engine.match.far_after_m = v; }},
