@@ -1,6 +1,7 @@
 #include "app/tools/eval/drive_summary.hpp"
 
 #include <cmath>
+#include <optional>
 
 #include "app/tools/common/tool_files.hpp"
 #include "app/tools/eval/inputs.hpp"
@@ -22,6 +23,12 @@ Result<double> number_at(const JsonValue& object, const char* key, bool whole = 
   return v->number;
 }
 
+// The number at `key` of `object`; none when absent or null (or not a number).
+std::optional<double> optional_number_at(const JsonValue& object, const char* key) {
+  const JsonValue* v = object.find(key);
+  return v != nullptr && v->is(Type::Number) ? std::optional<double>(v->number) : std::nullopt;
+}
+
 Result<replay::RevisitEvent> event_of(const JsonValue& e) {
   replay::RevisitEvent event;
   const Result<double> first = number_at(e, "first_frame", true), last = number_at(e, "last_frame", true),
@@ -35,17 +42,14 @@ Result<replay::RevisitEvent> event_of(const JsonValue& e) {
   const auto k = kind && kind->is(Type::String) ? replay::revisit_kind_from_name(kind->string) : std::nullopt;
   if (!k) return error("\"kind\" is not same, opposite or crossing");
   event.kind = *k;
-  if (const JsonValue* closed = e.find("closed_at_m"); closed && closed->is(Type::Number))
-    event.closed_at_m = closed->number;
+  event.closed_at_m = optional_number_at(e, "closed_at_m");
   // Shared markings: absent from runs without the markings in view.
   if (e.find("shared_markings") != nullptr) {
     const Result<double> shared = number_at(e, "shared_markings", true);
     if (!shared) return shared.error();
     event.shared_markings = static_cast<std::size_t>(*shared);
-    if (const JsonValue* second = e.find("second_shared_m"); second && second->is(Type::Number))
-      event.second_shared_m = second->number;
-    if (const JsonValue* third = e.find("third_shared_m"); third && third->is(Type::Number))
-      event.third_shared_m = third->number;
+    event.second_shared_m = optional_number_at(e, "second_shared_m");
+    event.third_shared_m = optional_number_at(e, "third_shared_m");
   }
   return event;
 }

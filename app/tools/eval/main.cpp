@@ -420,16 +420,16 @@ void load_can_log(Run& r) {
 // default file is absent.
 void load_ecu_outputs(Run& r) {
   const Options& o = r.o;
-  // The markings in view judge the detections, and tell what each revisit
-  // shares with the older visit.
+  // The markings in view judge the detections (then they must be there),
+  // and tell what each revisit shares with the older visit.
+  const bool judge_detections = o.detections_given || std::filesystem::exists(o.detections);
   const std::string visible = std::filesystem::path(o.dir) / "visible.csv";
-  r.have_visible = std::filesystem::exists(visible);
+  r.have_visible = judge_detections || std::filesystem::exists(visible);
   if (r.have_visible) r.visible = or_fail(load_visible(visible, r.route.size()));
-  if (!o.detections_given && !std::filesystem::exists(o.detections)) {
+  if (!judge_detections) {
     r.marking_note = o.detections + " not found: marking detection not evaluated";
   } else {
     r.detections = or_fail(load_detections(o.detections, r.route.size()));
-    if (!r.have_visible) r.visible = or_fail(load_visible(visible, r.route.size()));
     r.have_markings = true;
   }
   if (!o.landmarks_given && !std::filesystem::exists(o.landmarks)) {

@@ -109,10 +109,10 @@ struct MarkingView {
   double left_m = 0.0;
 };
 
-// Sets every event's shared markings from the markings in view (those in
-// the area kSeen* describe). A marking is passed at the last frame of the event
-// (or of its lead) in which it is seen. `poses` and `times` are the truth the events were found in;
-// views beyond them are ignored.
+// Sets every event's shared markings from the markings in view (seen: in
+// the area kSeen* describe). A marking is passed at the last frame of its
+// first run of sightings in the event or its lead. `poses` and `times` are
+// the truth the events were found in; views beyond them are ignored.
 void mark_shared_markings(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
                           std::span<const double> times, std::span<const MarkingView> views);
 
