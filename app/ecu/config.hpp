@@ -67,6 +67,7 @@ inline EngineConfig ecu_engine_defaults() {
   EngineConfig c;
   c.tracker.min_observations = 3;
   c.tracker.release_lag_m = 5.0;
+  c.tracker.settled_lag_m = 1.0;
   c.match.max_residual_m = 0.3;
   c.match.max_drift_rel = 0.02;
   c.match.max_frame_distance_m = 4.0;

@@ -27,6 +27,10 @@ struct TrackerConfig {
   // Committed landmarks wait until the car is this far past them before they
   // are chained, so that landmarks enter sequences in along-track order.
   double release_lag_m = 15.0;
+  // Sooner, once the car is this far past them and no marking still tracked
+  // lies behind them: the order is then known. At or above release_lag_m it
+  // never comes first.
+  double settled_lag_m = 15.0;
 };
 
 struct ChainConfig {

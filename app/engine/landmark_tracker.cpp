@@ -1,6 +1,7 @@
 #include "app/engine/landmark_tracker.hpp"
 
 #include <cmath>
+#include <limits>
 
 namespace markloop {
 
@@ -72,6 +73,24 @@ void LandmarkTracker::add_drift(Track& track, const FrameInput& frame, const Obs
                   obs.x - track.car_first_x, obs.y - track.car_first_y, obs.weight);
 }
 
+double LandmarkTracker::station(const Track& track, double x, double y) {
+  // Along-track station of the marking itself: where the car was when it
+  // last saw it, plus how far ahead of the car it lies. This does not
+  // depend on which frame happened to see it last.
+  const double ahead =
+      (x - track.car.x) * std::cos(track.car.yaw) + (y - track.car.y) * std::sin(track.car.yaw);
+  return track.odometer_last + ahead;
+}
+
+double LandmarkTracker::lowest_active_station() const {
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const Track& track : tracks_)
+    if (track.has_pose)
+      lowest =
+          std::min(lowest, station(track, track.sum_x / track.sum_weight, track.sum_y / track.sum_weight));
+  return lowest;
+}
+
 bool LandmarkTracker::to_landmark(const Track& track, Landmark& out) {
   if (track.count < config_.min_observations) {
     ++counters_.tracks_spurious;
@@ -97,12 +116,7 @@ bool LandmarkTracker::to_landmark(const Track& track, Landmark& out) {
     out.car_x = static_cast<float>(track.car.x);
     out.car_y = static_cast<float>(track.car.y);
     out.car_yaw = static_cast<float>(track.car.yaw);
-    // Along-track station of the marking itself: where the car was when it
-    // last saw it, plus how far ahead of the car it lies. This does not
-    // depend on which frame happened to see it last.
-    const double ahead =
-        (out.x - track.car.x) * std::cos(track.car.yaw) + (out.y - track.car.y) * std::sin(track.car.yaw);
-    out.station = track.odometer_last + ahead;
+    out.station = station(track, out.x, out.y);
   }
   ++counters_.landmarks_committed;
   return true;

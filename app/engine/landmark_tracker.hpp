@@ -47,6 +47,9 @@ class LandmarkTracker {
   bool commit(double now, bool all, FixedVector<Landmark, N>& out);
 
   std::size_t active() const { return tracks_.size(); }
+  // The lowest station an active track's landmark would have if committed
+  // now; infinity when no track has a pose.
+  double lowest_active_station() const;
   const TrackerCounters& counters() const { return counters_; }
   // Over the whole run: a cleared map leaves the car's odometry as it was.
   const OdometryScaleEstimator& odometry_scale() const { return scale_; }
@@ -78,6 +81,7 @@ class LandmarkTracker {
   };
 
   static void add_drift(Track& track, const FrameInput& frame, const Observation& obs);
+  static double station(const Track& track, double x, double y);
 
   bool to_landmark(const Track& track, Landmark& out);
 

@@ -24,7 +24,7 @@ const char* validate(const EngineConfig& c) {
     return "association radius must be a positive number of metres";
   if (!finite_positive(c.tracker.commit_after_s)) return "commit delay must be a positive number of seconds";
   if (c.tracker.min_observations < 1) return "minimum observations must be at least 1";
-  if (!finite_non_negative(c.tracker.release_lag_m))
+  if (!finite_non_negative(c.tracker.release_lag_m) || !finite_non_negative(c.tracker.settled_lag_m))
     return "release lag must be a non-negative number of metres";
   if (!finite_non_negative(c.chain.row_width_m)) return "row width must be a non-negative number of metres";
   if (!std::isfinite(c.chain.max_link_m) || c.chain.max_link_m <= c.chain.row_width_m)
@@ -191,7 +191,12 @@ void SequenceEngine::commit_and_release(double now, bool all, MatchSink& sink) {
     }
     if (done) break;
   }
-  while (!pending_.empty() && (all || pending_[0].station <= odometer_ - config_.tracker.release_lag_m)) {
+  // Every landmark still to come lies beyond the car or beyond an active
+  // track: one settled that far behind enters in order.
+  const double settled =
+      std::min(odometer_ - config_.tracker.settled_lag_m, tracker_.lowest_active_station());
+  const double released = std::max(odometer_ - config_.tracker.release_lag_m, settled);
+  while (!pending_.empty() && (all || pending_[0].station <= released)) {
     release(pending_[0], sink);
     pending_.erase_at(0);
   }

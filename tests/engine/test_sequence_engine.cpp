@@ -1,3 +1,4 @@
+#include <catch2/catch_approx.hpp>
 #include <catch2/catch_test_macros.hpp>
 
 #include <cmath>
@@ -186,6 +187,68 @@ TEST_CASE("a marking missed on one visit breaks no sequence when a row may be sk
   CHECK(matched_rows(1) == std::vector<int>{2, 3, 4, 6, 7, 8, 10, 11, 12, 13});
   // Without: also every row whose sequence spans row 5 or row 9.
   CHECK(matched_rows(0) == std::vector<int>{2, 3, 4, 8, 12, 13});
+}
+
+namespace {
+
+struct Sighting {
+  double x;                // on a straight road along x
+  FrameIndex first, last;  // seen on these frames
+  Label label;
+};
+
+// The car drives along x at `speed` metres a frame, 10 frames a second,
+// seeing each marking on its frames; returns the stations released, in
+// release order, and the car's x at each release.
+std::vector<std::pair<double, double>> released(EngineConfig config, const std::vector<Sighting>& marks,
+                                                FrameIndex frames, double speed = 1.0) {
+  SequenceEngine engine(config);
+  Collector sink;
+  std::vector<std::pair<double, double>> out;
+  for (FrameIndex f = 0; f < frames; ++f) {
+    std::vector<Observation> seen;
+    for (const Sighting& m : marks)
+      if (f >= m.first && f <= m.last) seen.push_back({m.label, static_cast<float>(m.x), 0.0f});
+    engine.process_frame({f, f / 10.0, true, {speed * f, 0.0, 0.0}}, seen, sink);
+    while (out.size() < engine.counters().landmarks_released) {
+      const Landmark* l = engine.database().landmark(static_cast<LandmarkId>(out.size()));
+      REQUIRE(l != nullptr);
+      out.emplace_back(l->station, speed * f);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("a landmark enters the chains soon after the car passes it once nothing tracked lies behind it",
+          "[engine]") {
+  EngineConfig config;
+  config.tracker.release_lag_m = 15.0;
+  // Seen 20..4 m ahead; committed half a second after the last sighting.
+  const std::vector<Sighting> one{{30.0, 10, 26, 3}};
+  config.tracker.settled_lag_m = 1.0;
+  const auto early = released(config, one, 60);
+  REQUIRE(early.size() == 1);
+  CHECK(early[0].first == Catch::Approx(30.0).margin(0.01));
+  CHECK(early[0].second == 32.0);  // committed on frame 32, already 1 m past
+  config.tracker.settled_lag_m = 15.0;
+  const auto late = released(config, one, 60);
+  REQUIRE(late.size() == 1);
+  CHECK(late[0].second == 45.0);
+}
+
+TEST_CASE("a landmark settled early waits for a marking still tracked behind it", "[engine]") {
+  EngineConfig config;
+  config.tracker.settled_lag_m = 0.0;
+  // At 20 m/s the farther marking, lost from view early (an occluder), is
+  // committed and passed while the nearer one is still tracked.
+  const auto order = released(config, {{33.0, 4, 8, 3}, {30.0, 5, 12, 5}}, 30, 2.0);
+  REQUIRE(order.size() == 2);
+  CHECK(order[0].first == Catch::Approx(30.0).margin(0.01));
+  CHECK(order[1].first == Catch::Approx(33.0).margin(0.01));
+  CHECK(order[0].second == 36.0);  // the nearer one's commit releases both
+  CHECK(order[1].second == 36.0);
 }
 
 TEST_CASE("the engine rejects bad configurations", "[engine]") {

@@ -155,7 +155,7 @@ ecu_cases() {
     engine.min_observations engine.max_skipped_rows engine.max_candidates database.landmark_capacity
     database.sequence_capacity"
   local reals="observation.min_score observation.min_range_m observation.max_range_m engine.association_radius_m
-    engine.commit_after_s engine.release_lag_m engine.row_width_m engine.max_link_m engine.distance_tolerance_m
+    engine.commit_after_s engine.release_lag_m engine.settled_lag_m engine.row_width_m engine.max_link_m engine.distance_tolerance_m
     engine.distance_tolerance_rel engine.min_separation_m engine.min_separation_s engine.max_residual_m
     engine.max_frame_distance_m engine.max_drift_rel engine.max_drift_m engine.max_drift_yaw_deg
     engine.max_drift_yaw_deg_per_m engine.confirm_min_gap_m engine.confirm_within_m"

@@ -69,6 +69,9 @@ engine (each value must lie in the range given):
   --skip-rows N          rows a sequence may step over, 0 or 1; default 1
   --release-lag M        landmarks enter the chains once the car is this far
                          past them, 0 to 1000 m; default 15
+  --settled-lag M        ... or sooner, this far past them once no marking
+                         still tracked lies behind them, 0 to 1000 m;
+                         default 15
   --place N              place matching beside the sequences: N recent
                          landmarks agreeing in any order with those stored
                          where the odometry puts the car, 2 to 10; default 0
@@ -165,6 +168,7 @@ constexpr OptionSpec kOptions[] = {
     {"--min-observations", "N", "detections needed to make a landmark"},
     {"--skip-rows", "N", "rows a sequence may step over"},
     {"--release-lag", "M", "landmarks enter the chains this far behind the car"},
+    {"--settled-lag", "M", "... or this far once no tracked marking lies behind"},
     {"--place", "N", "place matching: N landmarks agreeing in any order"},
     {"--place-search", "M", "largest drift a place match allows"},
     {"--place-distinct", "M", "no other place within this distance may fit as well"},
@@ -241,6 +245,9 @@ constexpr NumericOption kNumericOptions[] = {
     {"--release-lag",
      {0.0, 1000.0, "metres", false},
      [](Options& o, double v) { o.engine.tracker.release_lag_m = v; }},
+    {"--settled-lag",
+     {0.0, 1000.0, "metres", false},
+     [](Options& o, double v) { o.engine.tracker.settled_lag_m = v; }},
     {"--place",
      {0, kMaxSequenceLength, "", true},
      [](Options& o, double v) { o.engine.match.place_landmarks = static_cast<unsigned>(v); }},
