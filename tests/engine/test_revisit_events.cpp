@@ -240,19 +240,19 @@ TEST_CASE("an event's shared markings: seen ahead on both visits, passed where l
   // Beyond the truth: ignored.
   views.push_back({d.poses.size() + 5, 6, 10.0, 0.0});
   mark_shared_markings(events, d.poses, d.times, views);
-  const RevisitEvent& e = events[0];
-  REQUIRE(e.shared_markings);
-  CHECK(*e.shared_markings == 3);
-  REQUIRE(e.second_shared_m);
-  REQUIRE(e.third_shared_m);
-  CHECK(*e.second_shared_m == Approx(94.0));
-  CHECK(*e.third_shared_m == Approx(144.0));
+  REQUIRE(events[0].seen);
+  const SharedMarkings& e = *events[0].seen;
+  CHECK(e.count == 3);
+  REQUIRE(e.second_m);
+  REQUIRE(e.third_m);
+  CHECK(*e.second_m == Approx(94.0));
+  CHECK(*e.third_m == Approx(144.0));
 
   // With the third marking gone there is no third.
   std::erase_if(views, [](const MarkingView& v) { return v.marking == 3; });
   mark_shared_markings(events, d.poses, d.times, views);
-  CHECK(*events[0].shared_markings == 2);
-  CHECK_FALSE(events[0].third_shared_m);
+  CHECK(events[0].seen->count == 2);
+  CHECK_FALSE(events[0].seen->third_m);
 }
 
 TEST_CASE("a marking passed just before a turn onto the old road counts at 0 m") {
@@ -268,11 +268,12 @@ TEST_CASE("a marking passed just before a turn onto the old road counts at 0 m")
   add_views(d, 1, 20.0, 0.0, 0, d.poses.size(), views);
   add_views(d, 2, 60.0, 0.5, 0, d.poses.size(), views);
   mark_shared_markings(events, d.poses, d.times, views);
-  REQUIRE(events[0].second_shared_m);
-  CHECK(*events[0].shared_markings == 2);
+  REQUIRE(events[0].seen);
+  REQUIRE(events[0].seen->second_m);
+  CHECK(events[0].seen->count == 2);
   // The second: last seen from x = 54, 33 m of driving after the event's
   // first frame (y = -5: 5 m north, then 1 m of the jog, then 34 m east).
-  CHECK(*events[0].second_shared_m ==
+  CHECK(*events[0].seen->second_m ==
         Approx(travelled_to(d, {54.0, 1.0}) - travelled_to(d, d.poses[events[0].first_frame])));
 }
 
@@ -291,28 +292,63 @@ TEST_CASE("only a marking's first pass in an event counts") {
     add_views(d, id, 60.0 * std::cos(a), 60.0 * std::sin(a), 0, d.poses.size(), views);
   }
   mark_shared_markings(events, d.poses, d.times, views);
-  REQUIRE(events[0].second_shared_m);
+  REQUIRE(events[0].seen);
+  REQUIRE(events[0].seen->second_m);
   // Last seen at least 5.5 m ahead: about 74 m in, not a lap later.
-  CHECK(*events[0].second_shared_m == Approx(74.0).margin(1.5));
+  CHECK(*events[0].seen->second_m == Approx(74.0).margin(1.5));
 }
 
 TEST_CASE("the tally spreads the second and third shared markings of long events") {
   std::vector<RevisitEvent> events(4);
   for (std::size_t i = 0; i < events.size(); ++i) {
     events[i].length_m = 100.0;
-    events[i].shared_markings = 3;
-    events[i].second_shared_m = 5.0 * static_cast<double>(i + 1);  // 5 .. 20 m
-    events[i].third_shared_m = 10.0 * static_cast<double>(i + 1);  // 10 .. 40 m
+    events[i].seen = SharedMarkings{3, 5.0 * static_cast<double>(i + 1),  // 5 .. 20 m
+                                    10.0 * static_cast<double>(i + 1)};   // 10 .. 40 m
   }
-  events[3].third_shared_m.reset();  // two shared only
+  events[3].seen->third_m.reset();   // two shared only
   events[2].length_m = 20.0;         // short: not in the long events' figures
   events.push_back(RevisitEvent{});  // shared markings unknown
   events.back().length_m = 100.0;
+  events[0].landmarked = SharedMarkings{3, 30.0, 60.0};  // landmarked: a tally of their own
   const RevisitTally t = tally_revisit_events(events);
-  CHECK(t.shared_known_long == 3);
-  CHECK(t.second_shared_long.count == 3);  // 5, 10, 20
-  CHECK(t.second_shared_long.median_m == Approx(10.0));
-  CHECK(t.third_shared_long.count == 2);  // 10, 20
-  CHECK(t.third_shared_long.median_m == Approx(15.0));
-  CHECK(t.third_shared_long.p90_m == Approx(20.0));
+  CHECK(t.seen_long.known == 3);
+  CHECK(t.seen_long.second.count == 3);  // 5, 10, 20
+  CHECK(t.seen_long.second.median_m == Approx(10.0));
+  CHECK(t.seen_long.third.count == 2);  // 10, 20
+  CHECK(t.seen_long.third.median_m == Approx(15.0));
+  CHECK(t.seen_long.third.p90_m == Approx(20.0));
+  CHECK(t.landmarked_long.known == 1);
+  CHECK(t.landmarked_long.third.median_m == Approx(60.0));
+}
+
+TEST_CASE("an event's landmarked markings: one label on both visits, the older pass before the event") {
+  Drive d;
+  d.straight(0, 0, 0, 300).away(40).straight(0, 1, 0, 200);
+  auto events = d.events();
+  REQUIRE(events.size() == 1);
+  const std::size_t second_visit = events[0].first_frame;  // x = 0 again
+  REQUIRE(second_visit == 700);
+  // A pass by the marking at x on the first visit and on the second, each
+  // ending 5 m before the car reaches it (one metre a frame).
+  std::vector<LandmarkedPass> passes;
+  const auto pass = [&](std::uint32_t marking, double x, Label first, Label second) {
+    passes.push_back({static_cast<std::size_t>(x - 5.0), marking, first});
+    passes.push_back({second_visit + static_cast<std::size_t>(x - 5.0), marking, second});
+  };
+  pass(1, 30.0, 4, 4);
+  pass(2, 60.0, 7, 7);
+  pass(3, 90.0, 2, 9);  // named otherwise on the return: no pair for a place
+  pass(4, 120.0, 5, 5);
+  // Only on the second visit; and a pass beyond the truth: neither counts.
+  passes.push_back({second_visit + 45, 5, 4});
+  passes.push_back({d.poses.size() + 3, 1, 4});
+  mark_landmarked_markings(events, d.poses, d.times, passes);
+  REQUIRE(events[0].landmarked);
+  const SharedMarkings& e = *events[0].landmarked;
+  CHECK(e.count == 3);
+  REQUIRE(e.second_m);
+  REQUIRE(e.third_m);
+  CHECK(*e.second_m == Approx(55.0));
+  CHECK(*e.third_m == Approx(115.0));
+  CHECK_FALSE(events[0].seen);
 }

@@ -43,7 +43,7 @@ grep -q '"landmarks":{"count":2,"without_pose":0,"right_label":1,"wrong_label":0
   { echo "FAIL json lacks the landmarks"; failures=$((failures + 1)); }
 grep -q '"misplaced":\[{"landmark":2,"label":"ped","frames":\[15,19\],"at":\[20.000,20.000\],"judged":"on no marking","nearest":{"id":0,"class":"stop","distance_m":34.482}}\]' "$run/figures.json" ||
   { echo "FAIL json lacks the misplaced landmark"; failures=$((failures + 1)); }
-grep -q '"revisits":{"radius_m":6,"min_age_s":30,"max_gap_s":3,"longer_m":50,"events":\[{"first_frame":394,"last_frame":799,"start_m":394.000,"length_m":405.000,"kind":"same","closed_at_m":176.000,"closing_query_frame":553,"shared_markings":0,"second_shared_m":null,"third_shared_m":null}\]' "$run/figures.json" ||
+grep -q '"revisits":{"radius_m":6,"min_age_s":30,"max_gap_s":3,"longer_m":50,"events":\[{"first_frame":394,"last_frame":799,"start_m":394.000,"length_m":405.000,"kind":"same","closed_at_m":176.000,"closing_query_frame":553,"shared_markings":0,"second_shared_m":null,"third_shared_m":null,"landmarked_markings":0,"second_landmarked_m":null,"third_landmarked_m":null}\]' "$run/figures.json" ||
   { echo "FAIL json lacks the revisit events"; failures=$((failures + 1)); }
 grep -q '"passes":{"count":0,"cut_by_drive_ends":0,"named_right":0' "$run/figures.json" ||
   { echo "FAIL json lacks the passes"; failures=$((failures + 1)); }

@@ -51,11 +51,12 @@ DriveFigures load(const std::string& path) {
 
 // An event with the markings it shares with the older visit (markloop-eval
 // with the markings in view).
-std::string event_sharing(int first, const char* shared, const char* second, const char* third) {
+std::string event_sharing(int first, const char* shared, const char* second, const char* third,
+                          const std::string& name = "shared") {
   std::string e = event(first, 100.0, "same", "null");
   e.pop_back();
-  return e + ",\"shared_markings\":" + shared + ",\"second_shared_m\":" + second +
-         ",\"third_shared_m\":" + third + "}";
+  return e + ",\"" + name + "_markings\":" + shared + ",\"second_" + name + "_m\":" + second + ",\"third_" +
+         name + "_m\":" + third + "}";
 }
 
 }  // namespace
@@ -102,11 +103,18 @@ TEST_CASE("the markings events share with the older visit are summed over drives
                                                                   event(300, 100.0, "same", "null")));
   const DrivesSummary s = summarise_drives({load(a), load(b)});
   // The event without them (an older eval.json's) is not counted.
-  CHECK(s.tally.shared_known_long == 3);
-  CHECK(s.tally.second_shared_long.count == 3);
-  CHECK(s.tally.second_shared_long.median_m == Approx(10.0));
-  CHECK(s.tally.third_shared_long.count == 2);
-  CHECK(s.tally.third_shared_long.median_m == Approx(40.0));
+  CHECK(s.tally.seen_long.known == 3);
+  CHECK(s.tally.seen_long.second.count == 3);
+  CHECK(s.tally.seen_long.second.median_m == Approx(10.0));
+  CHECK(s.tally.seen_long.third.count == 2);
+  CHECK(s.tally.seen_long.third.median_m == Approx(40.0));
+  CHECK(s.tally.landmarked_long.known == 0);
+  const std::string c = write_json(
+      "landmarked.json", eval_json(1000.0, 0, 0, 0.0, event_sharing(1, "3", "12.0", "33.0", "landmarked")));
+  const DrivesSummary l = summarise_drives({load(c)});
+  CHECK(l.tally.seen_long.known == 0);
+  CHECK(l.tally.landmarked_long.known == 1);
+  CHECK(l.tally.landmarked_long.third.median_m == Approx(33.0));
   const std::string bad =
       write_json("shared-bad.json", eval_json(1.0, 0, 0, 0.0, event_sharing(1, "2.5", "1.0", "null")));
   const Result<DriveFigures> refused = load_drive_figures(bad);

@@ -29,6 +29,18 @@ std::optional<double> optional_number_at(const JsonValue& object, const char* ke
   return v != nullptr && v->is(Type::Number) ? std::optional<double>(v->number) : std::nullopt;
 }
 
+// An event's "<name>_markings", "second_<name>_m" and "third_<name>_m".
+Result<std::optional<replay::SharedMarkings>> shared_of(const JsonValue& e, const std::string& name) {
+  if (e.find(name + "_markings") == nullptr) return std::optional<replay::SharedMarkings>();
+  const Result<double> count = number_at(e, (name + "_markings").c_str(), true);
+  if (!count) return count.error();
+  replay::SharedMarkings shared;
+  shared.count = static_cast<std::size_t>(*count);
+  shared.second_m = optional_number_at(e, ("second_" + name + "_m").c_str());
+  shared.third_m = optional_number_at(e, ("third_" + name + "_m").c_str());
+  return std::optional(shared);
+}
+
 Result<replay::RevisitEvent> event_of(const JsonValue& e) {
   replay::RevisitEvent event;
   const Result<double> first = number_at(e, "first_frame", true), last = number_at(e, "last_frame", true),
@@ -43,13 +55,13 @@ Result<replay::RevisitEvent> event_of(const JsonValue& e) {
   if (!k) return error("\"kind\" is not same, opposite or crossing");
   event.kind = *k;
   event.closed_at_m = optional_number_at(e, "closed_at_m");
-  // Shared markings: absent from runs without the markings in view.
-  if (e.find("shared_markings") != nullptr) {
-    const Result<double> shared = number_at(e, "shared_markings", true);
-    if (!shared) return shared.error();
-    event.shared_markings = static_cast<std::size_t>(*shared);
-    event.second_shared_m = optional_number_at(e, "second_shared_m");
-    event.third_shared_m = optional_number_at(e, "third_shared_m");
+  // Shared markings: absent from runs without the markings in view (or the
+  // landmarks).
+  for (const auto& [name, shared] :
+       {std::pair{"shared", &event.seen}, std::pair{"landmarked", &event.landmarked}}) {
+    Result<std::optional<replay::SharedMarkings>> read = shared_of(e, name);
+    if (!read) return read.error();
+    *shared = *read;
   }
   return event;
 }

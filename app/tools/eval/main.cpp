@@ -458,18 +458,28 @@ std::vector<replay::MarkingView> marking_views(const Run& r) {
   return views;
 }
 
+// The passes of which the ECU made a landmark, with its label.
+std::vector<replay::LandmarkedPass> landmarked_passes(const PassScore& passes) {
+  std::vector<replay::LandmarkedPass> landmarked;
+  for (const MarkingPass& p : passes.passes)
+    if (p.outcome != PassOutcome::NoLandmark) landmarked.push_back({p.last_frame, p.id, p.named});
+  return landmarked;
+}
+
 void score(Run& r) {
   const replay::TruthJudge judge(r.route, r.o.tolerance, kRevisitSeparation_m);
   r.loops = score_loops(judge, r.times, r.log.loops);
   r.revisits = replay::find_revisit_events(r.route, r.times);
   replay::close_revisit_events(r.revisits, r.route, closing_detections(r.loops, r.log.loops, r.times));
   if (r.have_visible) replay::mark_shared_markings(r.revisits, r.route, r.times, marking_views(r));
-  r.revisit_tally = replay::tally_revisit_events(r.revisits);
   if (r.have_markings) r.markings = score_markings(r.visible, r.detections);
   if (r.have_landmarks) r.placed = score_landmarks(r.world, r.route, r.landmarks);
-  if (r.have_passes)
+  if (r.have_passes) {
     r.passes =
         score_passes(r.world, r.route, r.times, r.visible, r.detections, r.markings, r.landmarks, r.placed);
+    replay::mark_landmarked_markings(r.revisits, r.route, r.times, landmarked_passes(r.passes));
+  }
+  r.revisit_tally = replay::tally_revisit_events(r.revisits);
 }
 
 void print_can(const Run& r) {

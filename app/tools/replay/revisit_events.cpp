@@ -137,6 +137,35 @@ std::vector<std::size_t> first_passes(const SeenMarkings& seen, std::span<const 
   return frames;
 }
 
+// The first frame of an event's lead: kSharedLead_m before its first.
+std::size_t lead_frame(const std::vector<double>& travelled, std::size_t first_frame) {
+  const auto begin = travelled.begin(), end = begin + static_cast<std::ptrdiff_t>(first_frame);
+  return static_cast<std::size_t>(std::lower_bound(begin, end, travelled[first_frame] - kSharedLead_m) -
+                                  begin);
+}
+
+// The shared markings passed at `pass_frames` (any order).
+SharedMarkings shared_at(std::span<const std::size_t> pass_frames, const std::vector<double>& travelled,
+                         std::size_t first_frame) {
+  std::vector<double> at;
+  for (const std::size_t frame : pass_frames)
+    at.push_back(std::max(0.0, travelled[frame] - travelled[first_frame]));
+  std::sort(at.begin(), at.end());
+  SharedMarkings shared;
+  shared.count = at.size();
+  if (at.size() >= 2) shared.second_m = at[1];
+  if (at.size() >= 3) shared.third_m = at[2];
+  return shared;
+}
+
+void add_shared(const std::optional<SharedMarkings>& shared, std::vector<double>& second,
+                std::vector<double>& third, SharedTally& tally) {
+  if (!shared) return;
+  ++tally.known;
+  if (shared->second_m) second.push_back(*shared->second_m);
+  if (shared->third_m) third.push_back(*shared->third_m);
+}
+
 ClosureDistances closure_distances(std::vector<double> values) {
   ClosureDistances d;
   d.count = values.size();
@@ -228,33 +257,51 @@ void mark_shared_markings(std::vector<RevisitEvent>& events, std::span<const Pos
   const std::vector<double> travelled = travelled_distances(poses.first(frames));
   for (RevisitEvent& e : events) {
     if (e.last_frame >= frames || e.first_frame > e.last_frame) continue;
-    const double start = travelled[e.first_frame];
-    const auto lead = static_cast<std::size_t>(
-        std::lower_bound(travelled.begin(), travelled.begin() + static_cast<std::ptrdiff_t>(e.first_frame),
-                         start - kSharedLead_m) -
-        travelled.begin());
-    std::vector<double> at;
-    for (const std::size_t frame : first_passes(seen, times, lead, e.last_frame, times[e.first_frame]))
-      at.push_back(std::max(0.0, travelled[frame] - start));
-    std::sort(at.begin(), at.end());
-    e.shared_markings = at.size();
-    e.second_shared_m = at.size() >= 2 ? std::optional<double>(at[1]) : std::nullopt;
-    e.third_shared_m = at.size() >= 3 ? std::optional<double>(at[2]) : std::nullopt;
+    e.seen = shared_at(
+        first_passes(seen, times, lead_frame(travelled, e.first_frame), e.last_frame, times[e.first_frame]),
+        travelled, e.first_frame);
+  }
+}
+
+void mark_landmarked_markings(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
+                              std::span<const double> times, std::span<const LandmarkedPass> passes) {
+  const std::size_t frames = std::min(poses.size(), times.size());
+  const std::vector<double> travelled = travelled_distances(poses.first(frames));
+  for (RevisitEvent& e : events) {
+    if (e.last_frame >= frames || e.first_frame > e.last_frame) continue;
+    const std::size_t from = lead_frame(travelled, e.first_frame);
+    const double older_s = times[e.first_frame] - kRevisitMinAge_s;
+    // Per marking, the first pass in the event (or its lead) whose label an
+    // older pass gave too.
+    std::unordered_map<std::uint32_t, std::size_t> first_pass;
+    for (const LandmarkedPass& p : passes) {
+      if (p.last_frame < from || p.last_frame > e.last_frame) continue;
+      const bool named_before = std::any_of(passes.begin(), passes.end(), [&](const LandmarkedPass& o) {
+        return o.marking == p.marking && o.label == p.label && o.last_frame < frames &&
+               times[o.last_frame] <= older_s;
+      });
+      if (!named_before) continue;
+      const auto [it, added] = first_pass.try_emplace(p.marking, p.last_frame);
+      if (!added) it->second = std::min(it->second, p.last_frame);
+    }
+    std::vector<std::size_t> pass_frames;
+    for (const auto& [marking, frame] : first_pass) pass_frames.push_back(frame);
+    e.landmarked = shared_at(pass_frames, travelled, e.first_frame);
   }
 }
 
 RevisitTally tally_revisit_events(std::span<const RevisitEvent> events) {
   RevisitTally t;
-  std::vector<double> closure_long, closure_all, second_long, third_long;
+  std::vector<double> closure_long, closure_all;
+  std::vector<double> seen_second, seen_third, landmarked_second, landmarked_third;
   for (const RevisitEvent& e : events) {
     const bool long_event = e.length_m >= kLongRevisit_m;
     count(t.by_kind[static_cast<std::size_t>(e.kind)][long_event ? 1 : 0], e);
     count(long_event ? t.longer : t.shorter, e);
     count(t.all, e);
-    if (long_event && e.shared_markings) {
-      ++t.shared_known_long;
-      if (e.second_shared_m) second_long.push_back(*e.second_shared_m);
-      if (e.third_shared_m) third_long.push_back(*e.third_shared_m);
+    if (long_event) {
+      add_shared(e.seen, seen_second, seen_third, t.seen_long);
+      add_shared(e.landmarked, landmarked_second, landmarked_third, t.landmarked_long);
     }
     if (!e.closed_at_m) continue;
     closure_all.push_back(*e.closed_at_m);
@@ -262,8 +309,10 @@ RevisitTally tally_revisit_events(std::span<const RevisitEvent> events) {
   }
   t.closure_long = closure_distances(std::move(closure_long));
   t.closure_all = closure_distances(std::move(closure_all));
-  t.second_shared_long = closure_distances(std::move(second_long));
-  t.third_shared_long = closure_distances(std::move(third_long));
+  t.seen_long.second = closure_distances(std::move(seen_second));
+  t.seen_long.third = closure_distances(std::move(seen_third));
+  t.landmarked_long.second = closure_distances(std::move(landmarked_second));
+  t.landmarked_long.third = closure_distances(std::move(landmarked_third));
   return t;
 }
 

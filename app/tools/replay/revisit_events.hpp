@@ -58,6 +58,16 @@ inline constexpr std::size_t kRevisitKindCount = 3;
 std::string_view revisit_kind_name(RevisitKind kind);
 std::optional<RevisitKind> revisit_kind_from_name(std::string_view name);
 
+// Markings an event shares with the older visit: how many the car passes in
+// the event (or kSharedLead_m before it), and the distance driven into the
+// event when it had passed the second and the third of them (0 when before
+// the event). No place of two or three markings can close the event earlier.
+struct SharedMarkings {
+  std::size_t count = 0;
+  std::optional<double> second_m;
+  std::optional<double> third_m;
+};
+
 struct RevisitEvent {
   std::size_t first_frame = 0;
   std::size_t last_frame = 0;
@@ -69,15 +79,13 @@ struct RevisitEvent {
   // bus, and that detection's query frame.
   std::optional<double> closed_at_m;
   std::optional<std::size_t> closing_query_frame;
-  // Set by mark_shared_markings: how many markings the car passes in the
-  // event (or kSharedLead_m before it) that were in view at least
-  // kRevisitMinAge_s before the event, and the distance driven into the
-  // event when it had passed the second and the third of them (0 when
-  // before the event). No place of two or three markings can close the
-  // event earlier.
-  std::optional<std::size_t> shared_markings;
-  std::optional<double> second_shared_m;
-  std::optional<double> third_shared_m;
+  // Set by mark_shared_markings: markings in view at least
+  // kRevisitMinAge_s before the event, what the world allows.
+  std::optional<SharedMarkings> seen;
+  // Set by mark_landmarked_markings: markings of which the ECU made a
+  // landmark with one label on both visits, what perception allows: places
+  // pair only these.
+  std::optional<SharedMarkings> landmarked;
 };
 
 // `times` in seconds, one per pose, increasing. Events in drive order.
@@ -116,6 +124,22 @@ struct MarkingView {
 void mark_shared_markings(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
                           std::span<const double> times, std::span<const MarkingView> views);
 
+// A pass of the car by a marking of which the ECU made a landmark
+// (markloop-eval: a pass judged with a landmark): the last frame showing it
+// and the landmark's label.
+struct LandmarkedPass {
+  std::size_t last_frame = 0;
+  std::uint32_t marking = 0;
+  Label label = 0;
+};
+
+// Sets every event's landmarked markings: those with a pass ending in the
+// event or its lead whose label a pass ending kRevisitMinAge_s before the
+// event gave too; each at the first such pass. Frames beyond `poses` and
+// `times` are ignored.
+void mark_landmarked_markings(std::vector<RevisitEvent>& events, std::span<const Pose2> poses,
+                              std::span<const double> times, std::span<const LandmarkedPass> passes);
+
 // Closed over total events of one kind and length bucket.
 struct RevisitCount {
   std::size_t closed = 0;
@@ -130,6 +154,12 @@ struct ClosureDistances {
   double p90_m = 0.0;
 };
 
+struct SharedTally {
+  std::size_t known = 0;
+  ClosureDistances second;
+  ClosureDistances third;
+};
+
 // Events summed by kind and by length: [kind][0] shorter than
 // kLongRevisit_m, [kind][1] at least that long.
 struct RevisitTally {
@@ -139,9 +169,8 @@ struct RevisitTally {
   ClosureDistances closure_all;
   // Events of at least kLongRevisit_m whose shared markings are known, and
   // where their second and third were passed (over those that have one).
-  std::size_t shared_known_long = 0;
-  ClosureDistances second_shared_long;
-  ClosureDistances third_shared_long;
+  SharedTally seen_long;
+  SharedTally landmarked_long;
 };
 
 RevisitTally tally_revisit_events(std::span<const RevisitEvent> events);

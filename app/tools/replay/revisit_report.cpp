@@ -49,11 +49,28 @@ void print_shared(std::FILE* out, const char* name, const ClosureDistances& d, s
                events);
 }
 
+// "; third marking in view on both visits passed at 24.0 m"
+void print_event_shared(std::FILE* out, const char* what, const std::optional<SharedMarkings>& shared) {
+  if (!shared) return;
+  if (shared->third_m)
+    std::fprintf(out, "; third marking %s passed at %.1f m", what, *shared->third_m);
+  else
+    std::fprintf(out, "; %zu marking%s %s", shared->count, shared->count == 1 ? "" : "s", what);
+}
+
 void json_optional(std::FILE* out, const char* name, const std::optional<double>& v) {
   if (v)
     std::fprintf(out, ",\"%s\":%.3f", name, *v);
   else
     std::fprintf(out, ",\"%s\":null", name);
+}
+
+// ,"shared_markings":3,"second_shared_m":13.000,"third_shared_m":24.000
+void json_event_shared(std::FILE* out, const std::string& name, const std::optional<SharedMarkings>& shared) {
+  if (!shared) return;
+  std::fprintf(out, ",\"%s_markings\":%zu", name.c_str(), shared->count);
+  json_optional(out, ("second_" + name + "_m").c_str(), shared->second_m);
+  json_optional(out, ("third_" + name + "_m").c_str(), shared->third_m);
 }
 
 void json_count(std::FILE* out, const char* name, const RevisitCount& c) {
@@ -63,6 +80,14 @@ void json_count(std::FILE* out, const char* name, const RevisitCount& c) {
 void json_closure(std::FILE* out, const char* name, const ClosureDistances& d) {
   std::fprintf(out, "\"%s\":{\"count\":%zu,\"median_m\":%.3f,\"p90_m\":%.3f}", name, d.count, d.median_m,
                d.p90_m);
+}
+
+// ,"shared_known_longer":52,"second_shared_longer":{...},"third_shared_longer":{...}
+void json_shared_tally(std::FILE* out, const std::string& name, const SharedTally& t) {
+  std::fprintf(out, ",\"%s_known_longer\":%zu,", name.c_str(), t.known);
+  json_closure(out, ("second_" + name + "_longer").c_str(), t.second);
+  std::fputc(',', out);
+  json_closure(out, ("third_" + name + "_longer").c_str(), t.third);
 }
 
 }  // namespace
@@ -88,12 +113,19 @@ void print_revisit_tally(std::FILE* out, const RevisitTally& t) {
   print_row(out, "all", t.shorter, t.longer);
   print_closure(out, "closed at, median / p90 (50 m or more)", t.closure_long);
   print_closure(out, "closed at, median / p90 (all)", t.closure_all);
-  if (t.shared_known_long == 0) return;
   // Where a place of two or three markings could have closed them at the earliest.
-  std::fprintf(out, "  markings shared with the older visit, passed (events of 50 m or more: %zu):\n",
-               t.shared_known_long);
-  print_shared(out, "second, median / p90", t.second_shared_long, t.shared_known_long);
-  print_shared(out, "third, median / p90", t.third_shared_long, t.shared_known_long);
+  if (t.seen_long.known > 0) {
+    std::fprintf(out, "  markings in view on both visits, passed (events of 50 m or more: %zu):\n",
+                 t.seen_long.known);
+    print_shared(out, "second, median / p90", t.seen_long.second, t.seen_long.known);
+    print_shared(out, "third, median / p90", t.seen_long.third, t.seen_long.known);
+  }
+  if (t.landmarked_long.known > 0) {
+    std::fprintf(out, "  ... landmarks of one label on both visits (events of 50 m or more: %zu):\n",
+                 t.landmarked_long.known);
+    print_shared(out, "second, median / p90", t.landmarked_long.second, t.landmarked_long.known);
+    print_shared(out, "third, median / p90", t.landmarked_long.third, t.landmarked_long.known);
+  }
 }
 
 void print_revisit_events(std::FILE* out, std::span<const RevisitEvent> events, std::size_t limit) {
@@ -105,10 +137,8 @@ void print_revisit_events(std::FILE* out, std::span<const RevisitEvent> events, 
       std::fprintf(out, "closed at %.1f m (query frame %zu)", *e.closed_at_m, *e.closing_query_frame);
     else
       std::fprintf(out, "never closed");
-    if (e.third_shared_m)
-      std::fprintf(out, "; third shared marking passed at %.1f m", *e.third_shared_m);
-    else if (e.shared_markings)
-      std::fprintf(out, "; %zu shared markings", *e.shared_markings);
+    print_event_shared(out, "in view on both visits", e.seen);
+    print_event_shared(out, "landmarked on both", e.landmarked);
     std::fputc('\n', out);
   }
   if (events.size() > limit) std::fprintf(out, "    ... %zu more (all in --json)\n", events.size() - limit);
@@ -133,10 +163,8 @@ void json_revisit_tally(std::FILE* out, const RevisitTally& t) {
   json_closure(out, "closure_longer", t.closure_long);
   std::fputc(',', out);
   json_closure(out, "closure_all", t.closure_all);
-  std::fprintf(out, ",\"shared_known_longer\":%zu,", t.shared_known_long);
-  json_closure(out, "second_shared_longer", t.second_shared_long);
-  std::fputc(',', out);
-  json_closure(out, "third_shared_longer", t.third_shared_long);
+  json_shared_tally(out, "shared", t.seen_long);
+  json_shared_tally(out, "landmarked", t.landmarked_long);
   std::fputc('}', out);
 }
 
@@ -156,11 +184,8 @@ void json_revisits(std::FILE* out, std::span<const RevisitEvent> events, const R
       std::fprintf(out, "%.3f,\"closing_query_frame\":%zu", *e.closed_at_m, *e.closing_query_frame);
     else
       std::fprintf(out, "null,\"closing_query_frame\":null");
-    if (e.shared_markings) {
-      std::fprintf(out, ",\"shared_markings\":%zu", *e.shared_markings);
-      json_optional(out, "second_shared_m", e.second_shared_m);
-      json_optional(out, "third_shared_m", e.third_shared_m);
-    }
+    json_event_shared(out, "shared", e.seen);
+    json_event_shared(out, "landmarked", e.landmarked);
     std::fputc('}', out);
   }
   std::fprintf(out, "],\"tally\":");
