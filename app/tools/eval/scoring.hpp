@@ -150,8 +150,8 @@ inline constexpr double kSameMarking_m = TrackerConfig{}.association_radius_m;
 // region in one of its frames, in the car's frame (frames.csv's pose), the
 // marking was out of view at the drive's first frame, and the drive went on
 // for kSettleDistance_m after the pass: the ECU holds a landmark back until
-// the car is 15 m past it (engine.release_lag_m), and a drive's last tracks
-// are never committed.
+// the car is past it (engine.release_lag_m at most), and a drive's last
+// tracks are never committed.
 struct PassRegion {
   double ahead_min_m = 3.0;
   double ahead_max_m = 20.0;
