@@ -310,6 +310,8 @@ TEST_CASE("the tally spreads the second and third shared markings of long events
   events.push_back(RevisitEvent{});  // shared markings unknown
   events.back().length_m = 100.0;
   events[0].landmarked = SharedMarkings{3, 30.0, 60.0};  // landmarked: a tally of their own
+  events[0].closed_at_m = 70.0;                          // 10 m past the third
+  events[1].landmarked = SharedMarkings{3, 30.0, 60.0};  // not closed: no wait
   const RevisitTally t = tally_revisit_events(events);
   CHECK(t.seen_long.known == 3);
   CHECK(t.seen_long.second.count == 3);  // 5, 10, 20
@@ -317,8 +319,10 @@ TEST_CASE("the tally spreads the second and third shared markings of long events
   CHECK(t.seen_long.third.count == 2);  // 10, 20
   CHECK(t.seen_long.third.median_m == Approx(15.0));
   CHECK(t.seen_long.third.p90_m == Approx(20.0));
-  CHECK(t.landmarked_long.known == 1);
+  CHECK(t.landmarked_long.known == 2);
   CHECK(t.landmarked_long.third.median_m == Approx(60.0));
+  CHECK(t.beyond_third_landmarked_long.count == 1);
+  CHECK(t.beyond_third_landmarked_long.median_m == Approx(10.0));
 }
 
 TEST_CASE("an event's landmarked markings: one label on both visits, the older pass before the event") {

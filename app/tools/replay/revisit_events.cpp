@@ -293,7 +293,7 @@ void mark_landmarked_markings(std::vector<RevisitEvent>& events, std::span<const
 RevisitTally tally_revisit_events(std::span<const RevisitEvent> events) {
   RevisitTally t;
   std::vector<double> closure_long, closure_all;
-  std::vector<double> seen_second, seen_third, landmarked_second, landmarked_third;
+  std::vector<double> seen_second, seen_third, landmarked_second, landmarked_third, beyond_third;
   for (const RevisitEvent& e : events) {
     const bool long_event = e.length_m >= kLongRevisit_m;
     count(t.by_kind[static_cast<std::size_t>(e.kind)][long_event ? 1 : 0], e);
@@ -305,7 +305,10 @@ RevisitTally tally_revisit_events(std::span<const RevisitEvent> events) {
     }
     if (!e.closed_at_m) continue;
     closure_all.push_back(*e.closed_at_m);
-    if (long_event) closure_long.push_back(*e.closed_at_m);
+    if (!long_event) continue;
+    closure_long.push_back(*e.closed_at_m);
+    if (e.landmarked && e.landmarked->third_m)
+      beyond_third.push_back(*e.closed_at_m - *e.landmarked->third_m);
   }
   t.closure_long = closure_distances(std::move(closure_long));
   t.closure_all = closure_distances(std::move(closure_all));
@@ -313,6 +316,7 @@ RevisitTally tally_revisit_events(std::span<const RevisitEvent> events) {
   t.seen_long.third = closure_distances(std::move(seen_third));
   t.landmarked_long.second = closure_distances(std::move(landmarked_second));
   t.landmarked_long.third = closure_distances(std::move(landmarked_third));
+  t.beyond_third_landmarked_long = closure_distances(std::move(beyond_third));
   return t;
 }
 

@@ -171,6 +171,10 @@ struct RevisitTally {
   // where their second and third were passed (over those that have one).
   SharedTally seen_long;
   SharedTally landmarked_long;
+  // Closed events of at least kLongRevisit_m with a third landmarked
+  // marking: how far past it they closed (the engine's own wait; negative
+  // when a place or sequence closed it sooner).
+  ClosureDistances beyond_third_landmarked_long;
 };
 
 RevisitTally tally_revisit_events(std::span<const RevisitEvent> events);

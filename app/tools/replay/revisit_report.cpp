@@ -125,6 +125,8 @@ void print_revisit_tally(std::FILE* out, const RevisitTally& t) {
                  t.landmarked_long.known);
     print_shared(out, "second, median / p90", t.landmarked_long.second, t.landmarked_long.known);
     print_shared(out, "third, median / p90", t.landmarked_long.third, t.landmarked_long.known);
+    print_shared(out, "closed past the third, median / p90", t.beyond_third_landmarked_long,
+                 t.landmarked_long.third.count);
   }
 }
 
@@ -165,6 +167,8 @@ void json_revisit_tally(std::FILE* out, const RevisitTally& t) {
   json_closure(out, "closure_all", t.closure_all);
   json_shared_tally(out, "shared", t.seen_long);
   json_shared_tally(out, "landmarked", t.landmarked_long);
+  std::fputc(',', out);
+  json_closure(out, "closure_beyond_third_landmarked_longer", t.beyond_third_landmarked_long);
   std::fputc('}', out);
 }
 
