@@ -620,10 +620,13 @@ bool SequenceEngine::waits_for_longer_run(const MatchEvent& event) const {
 void SequenceEngine::extend_closure_run(MatchEvent& event) {
   const unsigned k = event.k;
   const auto pair_at = [&](unsigned i) { return LandmarkPair{event.query[i].id, event.match[i].id}; };
-  // The same closure goes on when this event's last-but-one landmarks are
-  // the last pair of the run: the run keeps the earlier pairs too.
-  const bool continues = !closure_run_.empty() && closure_run_.back().query == event.query[k - 2].id &&
-                         closure_run_.back().match == event.match[k - 2].id;
+  // The same closure goes on when one of this event's earlier pairs is in
+  // the run (the sequences through a row of markings side by side end on
+  // any of them): the run keeps the earlier pairs too.
+  bool continues = false;
+  for (unsigned i = 0; i + 1 < k; ++i)
+    for (const LandmarkPair& p : closure_run_)
+      continues = continues || (p.query == event.query[i].id && p.match == event.match[i].id);
   const auto start_run_here = [&] {
     closure_run_start_station_ = event.query[0].station;
     closure_run_.clear();

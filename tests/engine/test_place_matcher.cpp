@@ -298,3 +298,30 @@ TEST_CASE("a sequence match between visits far apart waits for a longer run", "[
   CHECK(after_run > at_once);
   CHECK(after_run - 57.0 >= 60.0);
 }
+
+TEST_CASE("a far visit's run goes on through rows of markings side by side", "[engine][far]") {
+  // Every row of the street holds two markings across the road: the
+  // sequences through it end on either, and the run must not start again
+  // each time they change.
+  std::vector<Mark> world;
+  const double spacing[] = {0, 17, 23, 19, 29, 16, 25, 21, 31, 18, 27, 22};
+  double x = 40.0;
+  for (int i = 0; i < 12; ++i) {
+    x += spacing[i];
+    world.push_back({x, -1.0, static_cast<Label>((i * 5) % 11)});
+    world.push_back({x + 0.3, 2.5, static_cast<Label>((i * 7 + 3) % 11)});
+  }
+  EngineConfig config = place_config(0);
+  config.match.far_after_m = 200.0;
+  config.match.far_run_m = 100.0;
+  SequenceEngine engine(config);
+  Car car(engine, world);
+  car.drive({{0, 0}, {330, 0}, {330, -300}, {0, -300}, {0, 0}, {330, 0}});
+  engine.flush(car.sink);
+  CHECK(judge(car, car.sink.events).wrong == 0);
+  REQUIRE(!car.sink.events.empty());
+  const MatchEvent& first = car.sink.events[0];
+  // The run from the first row (40 m) spans 100 m at the sixth (144 m).
+  CHECK(first.query[first.k - 1].x > 140.0);
+  CHECK(first.query[first.k - 1].x < 150.0);
+}
