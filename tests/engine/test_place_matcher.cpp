@@ -303,14 +303,9 @@ TEST_CASE("a far visit's run goes on through rows of markings side by side", "[e
   // Every row of the street holds two markings across the road: the
   // sequences through it end on either, and the run must not start again
   // each time they change.
-  std::vector<Mark> world;
-  const double spacing[] = {0, 17, 23, 19, 29, 16, 25, 21, 31, 18, 27, 22};
-  double x = 40.0;
-  for (int i = 0; i < 12; ++i) {
-    x += spacing[i];
-    world.push_back({x, -1.0, static_cast<Label>((i * 5) % 11)});
-    world.push_back({x + 0.3, 2.5, static_cast<Label>((i * 7 + 3) % 11)});
-  }
+  std::vector<Mark> world = town();
+  for (std::size_t i = 0; i < 12; ++i)  // town()'s first twelve: the street's
+    world.push_back({world[i].x + 0.3, 2.5, static_cast<Label>((i * 7 + 3) % 11)});
   EngineConfig config = place_config(0);
   config.match.far_after_m = 200.0;
   config.match.far_run_m = 100.0;
