@@ -267,6 +267,14 @@ void mark_landmarked_markings(std::vector<RevisitEvent>& events, std::span<const
                               std::span<const double> times, std::span<const LandmarkedPass> passes) {
   const std::size_t frames = std::min(poses.size(), times.size());
   const std::vector<double> travelled = travelled_distances(poses.first(frames));
+  // Per marking and label, the frame the first pass naming it so ended at.
+  const auto key = [](const LandmarkedPass& p) { return (std::uint64_t{p.marking} << 32) | p.label; };
+  std::unordered_map<std::uint64_t, std::size_t> first_named;
+  for (const LandmarkedPass& p : passes) {
+    if (p.last_frame >= frames) continue;
+    const auto [it, added] = first_named.try_emplace(key(p), p.last_frame);
+    if (!added) it->second = std::min(it->second, p.last_frame);
+  }
   for (RevisitEvent& e : events) {
     if (e.last_frame >= frames || e.first_frame > e.last_frame) continue;
     const std::size_t from = lead_frame(travelled, e.first_frame);
@@ -276,11 +284,7 @@ void mark_landmarked_markings(std::vector<RevisitEvent>& events, std::span<const
     std::unordered_map<std::uint32_t, std::size_t> first_pass;
     for (const LandmarkedPass& p : passes) {
       if (p.last_frame < from || p.last_frame > e.last_frame) continue;
-      const bool named_before = std::any_of(passes.begin(), passes.end(), [&](const LandmarkedPass& o) {
-        return o.marking == p.marking && o.label == p.label && o.last_frame < frames &&
-               times[o.last_frame] <= older_s;
-      });
-      if (!named_before) continue;
+      if (times[first_named.at(key(p))] > older_s) continue;
       const auto [it, added] = first_pass.try_emplace(p.marking, p.last_frame);
       if (!added) it->second = std::min(it->second, p.last_frame);
     }

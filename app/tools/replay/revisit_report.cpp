@@ -49,6 +49,13 @@ void print_shared(std::FILE* out, const char* name, const ClosureDistances& d, s
                events);
 }
 
+void print_shared_tally(std::FILE* out, const char* heading, const SharedTally& t) {
+  if (t.known == 0) return;
+  std::fprintf(out, "  %s (events of 50 m or more: %zu):\n", heading, t.known);
+  print_shared(out, "second, median / p90", t.second, t.known);
+  print_shared(out, "third, median / p90", t.third, t.known);
+}
+
 // "; third marking in view on both visits passed at 24.0 m"
 void print_event_shared(std::FILE* out, const char* what, const std::optional<SharedMarkings>& shared) {
   if (!shared) return;
@@ -114,20 +121,11 @@ void print_revisit_tally(std::FILE* out, const RevisitTally& t) {
   print_closure(out, "closed at, median / p90 (50 m or more)", t.closure_long);
   print_closure(out, "closed at, median / p90 (all)", t.closure_all);
   // Where a place of two or three markings could have closed them at the earliest.
-  if (t.seen_long.known > 0) {
-    std::fprintf(out, "  markings in view on both visits, passed (events of 50 m or more: %zu):\n",
-                 t.seen_long.known);
-    print_shared(out, "second, median / p90", t.seen_long.second, t.seen_long.known);
-    print_shared(out, "third, median / p90", t.seen_long.third, t.seen_long.known);
-  }
-  if (t.landmarked_long.known > 0) {
-    std::fprintf(out, "  ... landmarks of one label on both visits (events of 50 m or more: %zu):\n",
-                 t.landmarked_long.known);
-    print_shared(out, "second, median / p90", t.landmarked_long.second, t.landmarked_long.known);
-    print_shared(out, "third, median / p90", t.landmarked_long.third, t.landmarked_long.known);
+  print_shared_tally(out, "markings in view on both visits, passed", t.seen_long);
+  print_shared_tally(out, "... landmarks of one label on both visits", t.landmarked_long);
+  if (t.landmarked_long.known > 0)
     print_shared(out, "closed past the third, median / p90", t.beyond_third_landmarked_long,
                  t.landmarked_long.third.count);
-  }
 }
 
 void print_revisit_events(std::FILE* out, std::span<const RevisitEvent> events, std::size_t limit) {
