@@ -40,6 +40,13 @@ constexpr std::string_view marking_class_name(Label label) {
   return label < kMarkingClassCount ? kMarkingClassNames[label] : std::string_view("unknown");
 }
 
+// True for the classes whose marking turned half way round is the same
+// marking: read from behind they look as they do from ahead.
+constexpr bool same_when_turned(Label label) {
+  const std::string_view name = marking_class_name(label);
+  return name == "diamond" || name == "stopline" || name == "crosswalk";
+}
+
 constexpr std::optional<Label> marking_class_from_name(std::string_view name) {
   for (std::size_t i = 0; i < kMarkingClassCount; ++i)
     if (kMarkingClassNames[i] == name) return static_cast<Label>(i);

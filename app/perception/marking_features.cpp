@@ -169,4 +169,14 @@ void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& b
   shape_of(box, scratch, occupancy + kOccupancyFeatures);
 }
 
+void turn_features(PatchScratch& scratch, const Features& upright, Features& turned) {
+  std::reverse(scratch.grey.begin(), scratch.grey.end());
+  std::reverse(scratch.paint.begin(), scratch.paint.end());
+  float* hog = turned.data();
+  cell_histograms(scratch, hog);
+  normalise_blocks(hog);
+  occupancy_grid(scratch, hog + kHogFeatures);
+  std::copy(upright.end() - kShapeFeatures, upright.end(), turned.end() - kShapeFeatures);
+}
+
 }  // namespace markloop::perception

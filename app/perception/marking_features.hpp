@@ -35,7 +35,15 @@ struct PatchBox {
 };
 
 // `bev`, `mask`: CV_8UC1 of the same size; the box must lie inside them.
+// Leaves in `scratch` the patch the features came from.
 void compute_features(const cv::Mat& bev, const cv::Mat& mask, const PatchBox& box, PatchScratch& scratch,
                       Features& out);
+
+// Turns the patch in `scratch` (as compute_features left it, whose features
+// are `upright`) half way round, and gives its features so. A marking seen
+// from behind (an arrow in the oncoming lane) then reads as one seen ahead:
+// on the ground the view from behind is the marking turned by 180 degrees,
+// and a turn keeps a left arrow a left arrow.
+void turn_features(PatchScratch& scratch, const Features& upright, Features& turned);
 
 }  // namespace markloop::perception

@@ -98,3 +98,31 @@ TEST_CASE("a block of bare road stays near zero beside one of paint") {
   CHECK(paint > 0.2f);
   CHECK(road < 0.1f * paint);
 }
+
+TEST_CASE("a patch turned half way round gives the features of the marking turned") {
+  // The arrow drawn head down (the image turned by 180 degrees, the box
+  // with it), its patch turned, reads as the arrow upright.
+  ArrowPatch upright;
+  cv::Mat bev, mask;
+  cv::rotate(upright.bev, bev, cv::ROTATE_180);
+  cv::rotate(upright.mask, mask, cv::ROTATE_180);
+  const PatchBox box{bev.cols - 1 - upright.box.col1,
+                     bev.rows - 1 - upright.box.row1,
+                     bev.cols - 1 - upright.box.col0,
+                     bev.rows - 1 - upright.box.row0,
+                     upright.box.length_m,
+                     upright.box.width_m,
+                     upright.box.parts};
+  PatchScratch scratch;
+  Features read_upright{}, head_down{}, turned{};
+  compute_features(upright.bev, upright.mask, upright.box, scratch, read_upright);
+  compute_features(bev, mask, box, scratch, head_down);
+  turn_features(scratch, head_down, turned);
+  float largest = 0.0f, from_head_down = 0.0f;
+  for (std::size_t i = 0; i < read_upright.size(); ++i) {
+    largest = std::max(largest, std::abs(read_upright[i] - turned[i]));
+    from_head_down = std::max(from_head_down, std::abs(read_upright[i] - head_down[i]));
+  }
+  CHECK(largest < 1e-4f);
+  CHECK(from_head_down > 0.1f);  // read as it lies, the arrow head down is another pattern
+}

@@ -41,6 +41,7 @@ const RangedKey kRangedKeys[] = {
     {"detector_horizon_gain", &DetectorConfig::horizon_gain, 0.001f, 1.0f},
     {"detector_cnn_share", &DetectorConfig::cnn_share, 0.0f, 1.0f},
     {"detector_skip_networks_at", &DetectorConfig::skip_networks_at, 0.0f, 2.0f},
+    {"detector_turned_min_score", &DetectorConfig::turned_min_score, 0.0f, 2.0f},
     {"detector_min_view_spread", &DetectorConfig::min_view_spread, 0.0f, 64.0f},
     {"detector_min_view_coherence", &DetectorConfig::min_view_coherence, 0.0f, 1.0f},
 };

@@ -176,6 +176,12 @@ struct ClassifierConfig {
   // at least this probability (marking_classifier.hpp); above 1: always run
   // (detector_skip_networks_at).
   float skip_networks_at = 0.9f;
+  // A candidate not surely a marking as it lies is read again turned half
+  // way round, so that a marking seen from behind (the oncoming lane's
+  // arrows, words and numbers) is named as it was painted; the turned
+  // reading is taken when it names such a marking with at least this
+  // probability. Above 1: never read turned (detector_turned_min_score).
+  float turned_min_score = 0.9f;
 };
 
 // Reporting: which classified candidates become detections.
