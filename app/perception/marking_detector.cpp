@@ -38,6 +38,7 @@ MarkingDetector::MarkingDetector(const CameraModel& camera, const DetectorConfig
       grouper_(config, config, config.region, paint_, edges_),
       classifier_(config),
       words_(config, config.stroke_min_shared, config.region),
+      crosswalks_(config, config.bar_max_length_m, config.region, edges_),
       locator_(camera_, birdseye_, config.region) {}
 
 bool MarkingDetector::usable(const cv::Mat& grey) const {
@@ -203,7 +204,9 @@ void MarkingDetector::process(const cv::Mat& grey, bool still) {
   find_candidates();
   for (std::size_t i = 0; i < candidate_count_; ++i)
     classifier_.classify(bev_, paint_.mask(), candidates_[i]);
-  const std::size_t joined = words_.join(candidates(), {reported_by_.data(), candidate_count_});
+  const std::span<std::int32_t> reported_by{reported_by_.data(), candidate_count_};
+  const std::size_t joined = words_.join(candidates(), reported_by) +
+                             crosswalks_.join({candidates_.data(), candidate_count_}, reported_by);
   counters_.joined += joined;
   report(still, joined > 0);
 }

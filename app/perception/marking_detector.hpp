@@ -16,6 +16,8 @@
 //         occupancy, size) to three small MLPs and the networks blended
 //         with them, with an explicit reject class
 //     --> WordJoiner: a word's candidates reported as one
+//     --> CrosswalkJoiner: a crosswalk seen from the side, its stripes
+//         taken for stop lines one behind the other, reported as one
 //     --> MarkingLocator: Detection: label, score, quad in the image,
 //         centre on the ground.
 //
@@ -35,6 +37,7 @@
 #include "app/perception/camera_model.hpp"
 #include "app/perception/detector/candidate.hpp"
 #include "app/perception/detector/candidate_classifier.hpp"
+#include "app/perception/detector/crosswalk_joiner.hpp"
 #include "app/perception/detector/detector_config.hpp"
 #include "app/perception/detector/detector_counters.hpp"
 #include "app/perception/detector/lane_horizon.hpp"
@@ -144,10 +147,11 @@ class MarkingDetector {
   PartGrouper grouper_;
   CandidateClassifier classifier_;
   WordJoiner words_;
+  CrosswalkJoiner crosswalks_;
   MarkingLocator locator_;
   std::array<Candidate, kMaxCandidates> candidates_{};
   std::size_t candidate_count_ = 0;
-  std::array<std::int32_t, kMaxCandidates> reported_by_{};  // WordJoiner
+  std::array<std::int32_t, kMaxCandidates> reported_by_{};  // WordJoiner, CrosswalkJoiner
   std::array<Detection, kMaxDetections> detections_{};
   std::size_t detection_count_ = 0;
   float horizon_estimate_ = 0.0f;  // rows below the calibration's, smoothed

@@ -78,6 +78,10 @@ Status read_switch(const cv::FileStorage& fs, const std::string& path, const cha
   return {};
 }
 
+Status read_side_crosswalks(const cv::FileStorage& fs, const std::string& path, DetectorConfig& c) {
+  return read_switch(fs, path, "detector_side_crosswalks", c.side_crosswalks);
+}
+
 Status read_horizon(const cv::FileStorage& fs, const std::string& path, DetectorConfig& c) {
   if (Status read = read_switch(fs, path, "detector_horizon_from_lanes", c.horizon_from_lanes); !read)
     return read;
@@ -143,7 +147,7 @@ Status check_region(const std::string& path, const BirdsEyeRegion& region) {
 Result<DetectorConfig> read_detector_config(const cv::FileStorage& fs, const std::string& path,
                                             DetectorConfig c) {
   for (Status (*read)(const cv::FileStorage&, const std::string&, DetectorConfig&) :
-       {read_numbers, read_horizon, read_hidden_below})
+       {read_numbers, read_side_crosswalks, read_horizon, read_hidden_below})
     if (Status status = read(fs, path, c); !status) return status.error();
   if (Status region = check_region(path, c.region); !region) return region.error();
   return c;

@@ -163,6 +163,21 @@ struct WordConfig {
   float word_max_width_m = 3.2f;
 };
 
+// Side-crosswalk joining (CrosswalkJoiner): a crosswalk seen from the side
+// shows its stripes as bars one behind the other, each classified as a
+// stop line; at least side_crosswalk_min_bars of them, each sharing
+// side_crosswalk_min_shared of the narrower one's columns, at a pitch
+// within side_crosswalk_pitch_*_m and evenly spaced, are reported as one
+// crosswalk (detector_side_crosswalks, 0 or 1).
+struct SideCrosswalkConfig {
+  bool side_crosswalks = true;
+  int side_crosswalk_min_bars = 3;
+  float side_crosswalk_min_shared = 0.7f;
+  float side_crosswalk_pitch_min_m = 0.6f;
+  float side_crosswalk_pitch_max_m = 1.6f;
+  float side_crosswalk_pitch_tolerance = 0.25f;  // of the first pitch
+};
+
 // Classification (CandidateClassifier).
 struct ClassifierConfig {
   // Classifier weights; nullptr: the model compiled in (model/marking_mlp.bin).
@@ -205,6 +220,7 @@ struct DetectorConfig : ViewConfig,
                         PartConfig,
                         GroupingConfig,
                         WordConfig,
+                        SideCrosswalkConfig,
                         ClassifierConfig,
                         ReportConfig {};
 
