@@ -1316,7 +1316,7 @@ void judge_scores(const Options& o, const Sets& sets) {
 }
 
 // --evaluate-builtin: the compiled-in model as the detector classifies (the
-// MLPs blended with the networks, each candidate read both ways). The real
+// MLPs blended with the networks, read turned too where not sure). The real
 // images annotate only markings seen from ahead: those read turned and
 // reported are counted apart, most of them the oncoming lanes' arrows.
 void judge_builtin(const Options& o, const Sets& sets) {
