@@ -15,6 +15,7 @@
 #include "app/perception/marking_detector.hpp"
 #include "sim/render.hpp"
 #include "sim/world.hpp"
+#include "tests/support/clean_frame.hpp"
 
 using namespace markloop;
 using namespace markloop::sim;
@@ -26,12 +27,7 @@ constexpr double kAhead_m = 10.0;
 // Whether `detector` names the marking 10 m straight ahead of `pose`
 // `label` in the frame rendered there.
 bool named_ahead(Renderer& renderer, perception::MarkingDetector& detector, const Pose2& pose, Label label) {
-  Conditions c;
-  c.noise_sigma = 0.0;
-  c.occluder_probability = 0.0;
-  c.shadows = false;
-  cv::Mat image;
-  renderer.render(pose, 10.0, c, 0, {}, image);
+  const cv::Mat image = clean_frame(renderer, pose);
   for (const perception::Detection& d : detector.detect(image))
     if (std::hypot(d.ground_x - kAhead_m, d.ground_y) < 1.5) return d.label == label;
   return false;

@@ -14,6 +14,7 @@
 #include "app/perception/marking_detector.hpp"
 #include "sim/render.hpp"
 #include "sim/world.hpp"
+#include "tests/support/clean_frame.hpp"
 
 using namespace markloop;
 using namespace markloop::sim;
@@ -43,19 +44,14 @@ std::vector<Pose2> side_views_of(const Scenario& scenario, const Marking& m) {
 }
 
 struct Seen {
-  int crosswalks = 0;       // named crosswalk within 1 m of its centre
-  int stop_lines = 0;       // stop lines within its footprint
+  int crosswalks = 0;        // named crosswalk within 1 m of its centre
+  int stop_lines = 0;        // stop lines within its footprint
   double worst_error = 0.0;  // metres, of the crosswalks
 };
 
 Seen seen_from_side(perception::MarkingDetector& detector, Renderer& renderer, const Pose2& pose,
                     const Marking& m) {
-  Conditions c;
-  c.noise_sigma = 0.0;
-  c.occluder_probability = 0.0;
-  c.shadows = false;
-  cv::Mat image;
-  renderer.render(pose, 10.0, c, 0, {}, image);
+  const cv::Mat image = clean_frame(renderer, pose);
   const double dx = m.x - pose.x, dy = m.y - pose.y;
   const double ahead = std::cos(pose.yaw) * dx + std::sin(pose.yaw) * dy;
   const double left = -std::sin(pose.yaw) * dx + std::cos(pose.yaw) * dy;
@@ -104,9 +100,9 @@ TEST_CASE("a crosswalk seen from the side is named a crosswalk once, where it li
     named += seen ? 1 : 0;
     if (crosswalks == 8) break;
   }
-  INFO(crosswalks << " crosswalks passed on the right: named " << named << ", twice in a frame " << named_twice
-                  << ", worst centre error " << worst_error << " m; stop lines on them " << stop_lines_joined
-                  << ", without joining " << stop_lines_apart);
+  INFO(crosswalks << " crosswalks passed on the right: named " << named << ", twice in a frame "
+                  << named_twice << ", worst centre error " << worst_error << " m; stop lines on them "
+                  << stop_lines_joined << ", without joining " << stop_lines_apart);
   REQUIRE(crosswalks >= 4);
   CHECK(named >= crosswalks - 1);
   CHECK(named_twice == 0);

@@ -12,7 +12,9 @@ namespace {
 const int kStopline = static_cast<int>(*marking_class_from_name("stopline"));
 const int kCrosswalk = static_cast<int>(*marking_class_from_name("crosswalk"));
 
-float centre_row(const Candidate& c) { return 0.5f * static_cast<float>(c.row0 + c.row1); }
+float centre_row(const Candidate& c) {
+  return 0.5f * static_cast<float>(c.row0 + c.row1);
+}
 
 int cols_shared(const Candidate& a, const Candidate& b) {
   return std::min(a.col1, b.col1) - std::max(a.col0, b.col0) + 1;
@@ -27,7 +29,8 @@ CrosswalkJoiner::CrosswalkJoiner(const SideCrosswalkConfig& config, float bar_ma
       bar_max_rows_(static_cast<int>(std::lround(bar_max_length_m / region.x_step_m))),
       metres_per_row_(region.x_step_m) {}
 
-std::size_t CrosswalkJoiner::join(std::span<Candidate> candidates, std::span<std::int32_t> reported_by) const {
+std::size_t CrosswalkJoiner::join(std::span<Candidate> candidates,
+                                  std::span<std::int32_t> reported_by) const {
   if (!config_.side_crosswalks) return 0;
   const std::size_t n = std::min({candidates.size(), reported_by.size(), kMaxCandidates});
   std::array<int, kMaxCandidates> bars{};
@@ -40,7 +43,8 @@ std::size_t CrosswalkJoiner::join(std::span<Candidate> candidates, std::span<std
   }
   const std::span<int> sorted(bars.data(), bar_count);
   std::sort(sorted.begin(), sorted.end(), [&](int a, int b) {
-    return centre_row(candidates[static_cast<std::size_t>(a)]) < centre_row(candidates[static_cast<std::size_t>(b)]);
+    return centre_row(candidates[static_cast<std::size_t>(a)]) <
+           centre_row(candidates[static_cast<std::size_t>(b)]);
   });
   std::size_t joined = 0;
   std::array<int, kMaxCandidates> stack{};
@@ -50,9 +54,10 @@ std::size_t CrosswalkJoiner::join(std::span<Candidate> candidates, std::span<std
     const std::size_t length = stack_from(candidates, sorted, taken, first, stack);
     if (length < static_cast<std::size_t>(config_.side_crosswalk_min_bars)) continue;
     for (std::size_t k = 0; k < length; ++k) taken[static_cast<std::size_t>(stack[k])] = true;
-    const auto bar = [&](std::size_t k) -> Candidate& {
-      return candidates[static_cast<std::size_t>(sorted[static_cast<std::size_t>(stack[k])])];
+    const auto index = [&](std::size_t k) {  // the candidate of the stack's k-th bar
+      return static_cast<std::size_t>(sorted[static_cast<std::size_t>(stack[k])]);
     };
+    const auto bar = [&](std::size_t k) -> Candidate& { return candidates[index(k)]; };
     const int pitch_rows = static_cast<int>(std::lround(centre_row(bar(length - 1)) - centre_row(bar(0)))) /
                            static_cast<int>(length - 1);
     Candidate& crosswalk = bar(0);
@@ -61,9 +66,7 @@ std::size_t CrosswalkJoiner::join(std::span<Candidate> candidates, std::span<std
       crosswalk.clipped = true;  // may go on unseen
       crosswalk.clipped_near_only = false;
     }
-    const auto reporter = static_cast<std::int32_t>(sorted[static_cast<std::size_t>(stack[0])]);
-    for (std::size_t k = 1; k < length; ++k)
-      reported_by[static_cast<std::size_t>(sorted[static_cast<std::size_t>(stack[k])])] = reporter;
+    for (std::size_t k = 1; k < length; ++k) reported_by[index(k)] = static_cast<std::int32_t>(index(0));
     joined += length - 1;
   }
   return joined;
@@ -72,7 +75,9 @@ std::size_t CrosswalkJoiner::join(std::span<Candidate> candidates, std::span<std
 std::size_t CrosswalkJoiner::stack_from(std::span<const Candidate> candidates, std::span<const int> bars,
                                         std::span<const bool> taken, std::size_t first,
                                         std::span<int> stack) const {
-  const auto bar = [&](std::size_t k) -> const Candidate& { return candidates[static_cast<std::size_t>(bars[k])]; };
+  const auto bar = [&](std::size_t k) -> const Candidate& {
+    return candidates[static_cast<std::size_t>(bars[k])];
+  };
   std::size_t length = 0;
   stack[length++] = static_cast<int>(first);
   float first_pitch = 0.0f;
@@ -84,8 +89,8 @@ std::size_t CrosswalkJoiner::stack_from(std::span<const Candidate> candidates, s
     const int narrower = std::min(last.col1 - last.col0, next.col1 - next.col0) + 1;
     const bool beside = static_cast<float>(cols_shared(last, next)) >=
                         config_.side_crosswalk_min_shared * static_cast<float>(narrower);
-    const bool even = length == 1 || std::abs(pitch - first_pitch) <=
-                                         config_.side_crosswalk_pitch_tolerance * first_pitch;
+    const bool even =
+        length == 1 || std::abs(pitch - first_pitch) <= config_.side_crosswalk_pitch_tolerance * first_pitch;
     if (taken[k] || !beside || pitch < config_.side_crosswalk_pitch_min_m || !even) continue;
     if (length == 1) first_pitch = pitch;
     stack[length++] = static_cast<int>(k);
@@ -98,7 +103,8 @@ bool CrosswalkJoiner::seen_moved(const Candidate& bar, int rows) const {
   const int row0 = bar.row0 + rows, row1 = bar.row1 + rows;
   if (row0 < 0 || bar.col0 < 0 || row1 + 1 >= valid.rows || bar.col1 + 1 >= valid.cols) return false;
   const auto at = [&](int r, int c) { return valid.at<std::int32_t>(r, c); };
-  const int seen = at(row1 + 1, bar.col1 + 1) - at(row0, bar.col1 + 1) - at(row1 + 1, bar.col0) + at(row0, bar.col0);
+  const int seen =
+      at(row1 + 1, bar.col1 + 1) - at(row0, bar.col1 + 1) - at(row1 + 1, bar.col0) + at(row0, bar.col0);
   return seen == (row1 - row0 + 1) * (bar.col1 - bar.col0 + 1);
 }
 
