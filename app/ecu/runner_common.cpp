@@ -146,8 +146,8 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
     const perception::DetectorCounters& d = ecu.detector().counters();
     std::fprintf(stderr,
                  "markloop: detector %llu parts, %llu lane lines, %llu candidates, %llu rejected, "
-                 "%llu below score, %llu pieces of larger ones, %llu joined to the rest of their "
-                 "word, %llu cut by the view's edge, "
+                 "%llu below score, %llu pieces of larger ones, %llu joined to another's detection (a "
+                 "word, a side crosswalk), %llu cut by the view's edge, "
                  "%llu beyond the region, %llu bad frames, %llu flat, %llu noisy and %llu "
                  "cluttered views (%llu detections withheld), %llu parts, %llu candidates and "
                  "%llu letter strokes over the caps; horizon measured in %llu frames (not in "

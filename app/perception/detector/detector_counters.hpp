@@ -17,7 +17,7 @@ struct DetectorCounters {
   std::uint64_t parts_dropped = 0;        // over capacity (kMaxParts)
   std::uint64_t lane_lines = 0;           // thin long parts set apart
   std::uint64_t strokes_dropped = 0;      // ... short enough to be a letter, over kMaxStrokes
-  std::uint64_t joined = 0;               // candidates joined to the one across a letter stroke
+  std::uint64_t joined = 0;               // candidates in another's detection (a word, a side crosswalk)
   std::uint64_t candidates = 0;           // groups classified
   std::uint64_t candidates_dropped = 0;   // over capacity (kMaxCandidates)
   std::uint64_t oversize = 0;             // parts or groups too large to be a marking
