@@ -270,7 +270,7 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
   for (std::size_t j = 0; j < candidates.size(); ++j) {
     const Candidate& outer = candidates[j];
     if (j == index || (outer.predicted != c.predicted && !outer.clipped)) continue;
-    const int shared_cols = std::min(c.col1, outer.col1) - std::max(c.col0, outer.col0) + 1;
+    const int shared_cols = cols_shared(c, outer);
     const int shared_rows = rows_shared(c, outer);
     if (shared_cols <= 0 || shared_rows <= 0) continue;
     const int area = (c.col1 - c.col0 + 1) * (c.row1 - c.row0 + 1);

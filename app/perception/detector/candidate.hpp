@@ -70,6 +70,15 @@ template <typename BoxA, typename BoxB>
 int rows_shared(const BoxA& a, const BoxB& b) {
   return std::min(a.row1, b.row1) - std::max(a.row0, b.row0) + 1;
 }
+// The same across: columns spanned, and shared.
+template <typename Box>
+int cols_of(const Box& box) {
+  return box.col1 - box.col0 + 1;
+}
+template <typename BoxA, typename BoxB>
+int cols_shared(const BoxA& a, const BoxB& b) {
+  return std::min(a.col1, b.col1) - std::max(a.col0, b.col0) + 1;
+}
 
 // Grows `into` to cover `from` (parts' and candidates' boxes alike).
 template <typename Into, typename From>

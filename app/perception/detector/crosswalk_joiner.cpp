@@ -16,10 +16,6 @@ float centre_row(const Candidate& c) {
   return 0.5f * static_cast<float>(c.row0 + c.row1);
 }
 
-int cols_shared(const Candidate& a, const Candidate& b) {
-  return std::min(a.col1, b.col1) - std::max(a.col0, b.col0) + 1;
-}
-
 }  // namespace
 
 CrosswalkJoiner::CrosswalkJoiner(const SideCrosswalkConfig& config, float bar_max_length_m,
@@ -38,7 +34,7 @@ std::size_t CrosswalkJoiner::join(std::span<Candidate> candidates,
   for (std::size_t i = 0; i < n; ++i) {
     const Candidate& c = candidates[i];
     if (reported_by[i] == static_cast<std::int32_t>(i) && c.predicted == kStopline &&
-        c.row1 - c.row0 + 1 <= bar_max_rows_)
+        rows_of(c) <= bar_max_rows_)
       bars[bar_count++] = static_cast<int>(i);
   }
   const std::span<int> sorted(bars.data(), bar_count);
@@ -86,7 +82,7 @@ std::size_t CrosswalkJoiner::stack_from(std::span<const Candidate> candidates, s
     const Candidate& next = bar(k);
     const float pitch = (centre_row(next) - centre_row(last)) * metres_per_row_;
     if (pitch > config_.side_crosswalk_pitch_max_m) break;  // sorted: the rest lie further on
-    const int narrower = std::min(last.col1 - last.col0, next.col1 - next.col0) + 1;
+    const int narrower = std::min(cols_of(last), cols_of(next));
     const bool beside = static_cast<float>(cols_shared(last, next)) >=
                         config_.side_crosswalk_min_shared * static_cast<float>(narrower);
     const bool even =
@@ -105,7 +101,7 @@ bool CrosswalkJoiner::seen_moved(const Candidate& bar, int rows) const {
   const auto at = [&](int r, int c) { return valid.at<std::int32_t>(r, c); };
   const int seen =
       at(row1 + 1, bar.col1 + 1) - at(row0, bar.col1 + 1) - at(row1 + 1, bar.col0) + at(row0, bar.col0);
-  return seen == (row1 - row0 + 1) * (bar.col1 - bar.col0 + 1);
+  return seen == rows_of(bar) * cols_of(bar);
 }
 
 }  // namespace markloop::perception

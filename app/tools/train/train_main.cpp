@@ -1321,11 +1321,11 @@ void judge_scores(const Options& o, const Sets& sets) {
 // reported are counted apart, most of them the oncoming lanes' arrows.
 void judge_builtin(const Options& o, const Sets& sets) {
   int turned = 0, turned_unannotated = 0;
+  CandidateClassifier classifier{DetectorConfig{}};
   const ClassifySample model = [&](const Sample& s, std::array<float, kClassifierOutputs>& p) {
     PatchScratch patch;
     patch.grey = s.grey;
     for (std::size_t i = 0; i < patch.paint.size(); ++i) patch.paint[i] = s.paint[i] * (1.0f / 255.0f);
-    CandidateClassifier classifier{DetectorConfig{}};
     const CandidateClassifier::Reading reading = classifier.read(s.features, patch, p);
     if (reading.turned && reading.score >= default_min_score() && !s.clipped && !s.beyond_region) {
       ++turned;
