@@ -170,7 +170,8 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
         "%llu drift, %llu frames apart, %llu loaded-map single sequences, "
         "%llu loaded-map hypotheses, %llu loaded-map disagreeing, "
         "%llu matches (%llu with the pose refined over a run, %llu by place); places: %llu queries, "
-        "%llu hypotheses, %llu ambiguous, %llu beyond the drift limits\n",
+        "%llu hypotheses, %llu ambiguous, %llu beyond the drift limits, %llu of two across roads, "
+        "%llu of two with a marking unseen\n",
         (unsigned long long)e.sequences_created, (unsigned long long)e.candidates,
         (unsigned long long)e.candidates_too_recent, (unsigned long long)e.candidates_rejected_residual,
         (unsigned long long)e.candidates_rejected_drift,
@@ -178,7 +179,8 @@ bool report(const Ecu& ecu, const RunOptions& options, double wall_seconds, cons
         (unsigned long long)e.loaded_hypotheses, (unsigned long long)e.loaded_rejected,
         (unsigned long long)e.matches, (unsigned long long)e.closures_extended,
         (unsigned long long)e.place_matches, (unsigned long long)p.queries, (unsigned long long)p.hypotheses,
-        (unsigned long long)p.ambiguous, (unsigned long long)p.rejected_drift);
+        (unsigned long long)p.ambiguous, (unsigned long long)p.rejected_drift, (unsigned long long)p.across,
+        (unsigned long long)p.unseen);
     print_scale_line(ecu.engine().odometry_scale());
   }
   if (const Status written = write_summary(ecu, options, wall_seconds, mode, rss); !written) {
@@ -273,6 +275,8 @@ void print_engine_counters(std::FILE* out, const EngineCounters& e, const PlaceC
       {"place_hypotheses", p.hypotheses},
       {"place_ambiguous", p.ambiguous},
       {"place_rejected_drift", p.rejected_drift},
+      {"place_across", p.across},
+      {"place_unseen", p.unseen},
   };
   std::fprintf(out, " \"engine\": {");
   for (std::size_t i = 0; i < std::size(engine_counters); ++i)

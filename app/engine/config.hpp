@@ -110,6 +110,19 @@ struct MatchConfig {
   // A place's labels must be rare enough: the sum over its pairs of -log2
   // of each label's share of the landmarks seen so far (0: any labels).
   double place_min_bits = 0.0;
+  // A place of two pairs, fewer than place_landmarks, counts when its labels
+  // give at least this many bits, no rival of two pairs or more fits, and
+  // no more than place_pair_max_unseen stored landmarks lay, aligned, where
+  // the car looked on its way in without anything of their label seen
+  // there (0: a place needs place_landmarks pairs).
+  double place_pair_min_bits = 0.0;
+  unsigned place_pair_max_unseen = 0;
+  // Where the car surely sees a marking (the observations' ground area,
+  // less its edges): from near to near + depth ahead of the car, and to
+  // either side.
+  double place_view_near_m = 6.5;
+  double place_view_depth_m = 7.5;
+  double place_view_side_m = 4.5;
   // A place's rigid fit must be at most this far off (RMS), and within
   // max_residual_m: a constellation has no order and no distances checked
   // before its fit, and a far pair shifted to a look-alike fits roughly.

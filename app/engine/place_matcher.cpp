@@ -31,9 +31,29 @@ constexpr double kMinSpread_m = 3.0;
 // pieces in a row fit any other such row shifted along it, so one marking
 // is paired once.
 constexpr double kPieces_m = 3.0;
+// The car's path is kept a pose every this much driving (kMaxPath of them:
+// more than the place window and the view's depth).
+constexpr double kPathSpacing_m = 0.5;
+// A marking is surely detected when in view over this much driving, and
+// released once the car is this far past the view's near edge.
+constexpr double kLookedAt_m = 3.0;
+constexpr double kReleasedPast_m = 6.0;
+// A stored landmark is seen again by a recent landmark of its label within
+// this much of where the place puts it.
+constexpr double kSeenWithin_m = 1.5;
+// At each pair of a place of two the cars drove along one road, one way or
+// the other: headings this close to the same or the opposite. Met from a
+// cross street, one intersection's markings are seen from elsewhere.
+constexpr double kAlongRoad_deg = 30.0;
 
 Eigen::Vector2d point(const Landmark& l) {
   return {l.x, l.y};
+}
+
+// `p` moved by the rigid transform `t`.
+Eigen::Vector2d moved(const Pose2& t, const Eigen::Vector2d& p) {
+  const Pose2 q = compose(t, {p.x(), p.y(), 0.0});
+  return {q.x, q.y};
 }
 
 }  // namespace
@@ -61,6 +81,13 @@ double PlaceMatcher::evidence_bits(const Hypothesis& h) const {
   return bits;
 }
 
+void PlaceMatcher::remember_pose(const Pose2& pose, double odometer) {
+  if (path_size_ > 0 && odometer < path_at(0).odometer + kPathSpacing_m) return;
+  path_[path_next_] = {pose, odometer};
+  path_next_ = (path_next_ + 1) % kMaxPath;
+  path_size_ = std::min(path_size_ + 1, kMaxPath);
+}
+
 bool PlaceMatcher::old_enough(const Landmark& stored, const Landmark& query) const {
   // A loaded map's landmarks (negative stations) lie in another world frame.
   return stored.station >= 0.0 && stored.has_car_pose &&
@@ -71,7 +98,7 @@ bool PlaceMatcher::old_enough(const Landmark& stored, const Landmark& query) con
 bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
   if (!enabled() || recent_.empty()) return false;
   const Landmark& newest = recent_.back();
-  if (!newest.has_car_pose || recent_.size() < config_.place_landmarks) return false;
+  if (!newest.has_car_pose || recent_.size() < min_pairs()) return false;
   ++counters_.queries;
   group_pieces();
   std::size_t found = 0;
@@ -106,12 +133,23 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
       best = i;
   }
   if (best == found) return false;
-  if (evidence_bits(hypotheses_[best]) < config_.place_min_bits) {
+  const bool pair_only = hypotheses_[best].pairs.size() < config_.place_landmarks;
+  if (evidence_bits(hypotheses_[best]) < (pair_only ? config_.place_pair_min_bits : config_.place_min_bits)) {
     ++counters_.too_common;
     return false;
   }
-  // ...with no plausible rival: another visit of the same place agrees.
+  if (pair_only && !along_one_road(hypotheses_[best])) {
+    ++counters_.across;
+    return false;
+  }
+  if (pair_only && unseen(database, hypotheses_[best]) > config_.place_pair_max_unseen) {
+    ++counters_.unseen;
+    return false;
+  }
+  // ...with no plausible rival: another visit of the same place agrees. A
+  // place of two pairs has rivals of two pairs too.
   for (std::size_t i = 0; i < found; ++i) {
+    if (!pair_only && hypotheses_[i].pairs.size() < config_.place_landmarks) continue;
     if (plausible(hypotheses_[i]) && disagree(hypotheses_[i], hypotheses_[best])) {
       ++counters_.ambiguous;
       return false;
@@ -135,7 +173,7 @@ bool PlaceMatcher::build(const SequenceDatabase& database, const Landmark& ancho
     const Landmark* stored = partner(database, q, point(q) + shift, kPredictAbs_m + kPredictRel * reach, h);
     if (stored != nullptr) (void)h.pairs.push_back({&q, stored});
   }
-  if (h.pairs.size() < config_.place_landmarks) {
+  if (h.pairs.size() < min_pairs()) {
     ++counters_.too_few_pairs;
     return false;
   }
@@ -203,7 +241,7 @@ bool PlaceMatcher::fit_pairs(Hypothesis& h) const {
     if (spread_sq < kMinSpread_m * kMinSpread_m) return false;
     h.fit = fit_rigid_2d({from.data(), n}, {to.data(), n});
     if (h.fit.rms_residual <= std::min(config_.max_residual_m, config_.place_max_residual_m)) return true;
-    if (n <= config_.place_landmarks) return false;
+    if (n <= min_pairs()) return false;
     // The worst pair goes, never the newest (pair 0): it is the hypothesis.
     const double c = std::cos(h.fit.transform.yaw), s = std::sin(h.fit.transform.yaw);
     std::size_t worst = 1;
@@ -250,6 +288,81 @@ bool PlaceMatcher::disagree(const Hypothesis& a, const Hypothesis& b) const {
                              ? 0.0
                              : std::min(config_.place_search_m, drift_allowed_m(config_, driven));
   return (point(anchor_a) - point(anchor_b)).norm() > drifted + kDistinct_m;
+}
+
+bool PlaceMatcher::along_one_road(const Hypothesis& h) {
+  for (const Pair& p : h.pairs) {
+    const std::optional<Pose2> relative = relative_car_pose(h.fit.transform, *p.query, *p.stored);
+    if (!relative) return false;
+    const double turned = std::abs(relative->yaw) * kDegreesPerRadian;
+    if (turned > kAlongRoad_deg && turned < 180.0 - kAlongRoad_deg) return false;
+  }
+  return true;
+}
+
+unsigned PlaceMatcher::unseen(const SequenceDatabase& database, const Hypothesis& h) const {
+  if (path_size_ == 0) return 0;
+  // The stored landmarks within view of the recent path, aligned onto it
+  // (labels beyond the buckets are not looked for).
+  Eigen::Vector2d low, high;
+  recent_path_bounds(low, high);
+  const Eigen::Vector2d centre = moved(inverse(h.fit.transform), 0.5 * (low + high));
+  const double reach =
+      0.5 * (high - low).norm() +
+      std::hypot(config_.place_view_near_m + config_.place_view_depth_m, config_.place_view_side_m);
+  const Landmark& newest = recent_.back();
+  unsigned count = 0;
+  for (std::size_t bucket = 0; bucket < kLabelBuckets; ++bucket) {
+    if (label_counts_[bucket] == 0) continue;
+    database.for_each_landmark_near(static_cast<Label>(bucket), centre.x(), centre.y(), reach, kPerCell,
+                                    [&](const Landmark& stored) {
+                                      if (!old_enough(stored, newest) || piece_of_pair(stored, h)) return;
+                                      const Eigen::Vector2d p = moved(h.fit.transform, point(stored));
+                                      if (looked_at(p) && !seen_recently(stored.label, p)) ++count;
+                                    });
+  }
+  return count;
+}
+
+void PlaceMatcher::recent_path_bounds(Eigen::Vector2d& low, Eigen::Vector2d& high) const {
+  const double window_start = path_at(0).odometer - config_.place_window_m;
+  low = high = {path_at(0).pose.x, path_at(0).pose.y};
+  for (std::size_t age = 0; age < path_size_ && path_at(age).odometer >= window_start; ++age) {
+    const Eigen::Vector2d p(path_at(age).pose.x, path_at(age).pose.y);
+    low = low.cwiseMin(p), high = high.cwiseMax(p);
+  }
+}
+
+bool PlaceMatcher::piece_of_pair(const Landmark& stored, const Hypothesis& h) {
+  for (const Pair& pair : h.pairs)
+    if (stored.label == pair.stored->label && (point(stored) - point(*pair.stored)).norm() < kPieces_m)
+      return true;
+  return false;
+}
+
+bool PlaceMatcher::looked_at(const Eigen::Vector2d& p) const {
+  const double now = path_at(0).odometer;
+  const double window_start = now - config_.place_window_m;
+  double first = -1.0, last = -1.0;
+  for (std::size_t age = 0; age < path_size_ && path_at(age).odometer >= window_start; ++age) {
+    const PathPoint& at = path_at(age);
+    const double dx = p.x() - at.pose.x, dy = p.y() - at.pose.y;
+    const double ahead = std::cos(at.pose.yaw) * dx + std::sin(at.pose.yaw) * dy;
+    const double left = -std::sin(at.pose.yaw) * dx + std::cos(at.pose.yaw) * dy;
+    if (ahead < config_.place_view_near_m || ahead > config_.place_view_near_m + config_.place_view_depth_m ||
+        std::abs(left) > config_.place_view_side_m)
+      continue;
+    if (last < 0.0) last = at.odometer;
+    first = at.odometer;
+  }
+  return last >= 0.0 && last - first >= kLookedAt_m &&
+         now - last >= config_.place_view_near_m + kReleasedPast_m;
+}
+
+bool PlaceMatcher::seen_recently(Label label, const Eigen::Vector2d& p) const {
+  for (const Landmark& l : recent_)
+    if (l.label == label && (point(l) - p).norm() <= kSeenWithin_m) return true;
+  return false;
 }
 
 std::size_t PlaceMatcher::closest_cars(const Hypothesis& h) {

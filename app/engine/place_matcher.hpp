@@ -14,6 +14,10 @@
 //        car at (a few times the drift limits, within `place_distinct_m`)
 //        fits as well: a constellation repeated nearby (the same
 //        intersection layout a block away) is never a place.
+//     -> a place of two pairs (`place_pair_min_bits`) also needs the cars
+//        driving one road at both, and every stored landmark it puts where
+//        the car surely looked on its way in seen there again
+//        (`place_pair_max_unseen`).
 #pragma once
 
 #include <array>
@@ -38,6 +42,8 @@ struct PlaceCounters {
   std::uint64_t rejected_drift = 0;  // beyond the odometry prior
   std::uint64_t ambiguous = 0;       // another alignment fitted as well
   std::uint64_t too_common = 0;      // labels too common to tell the place (place_min_bits)
+  std::uint64_t across = 0;          // two pairs, passed by the cars along different roads
+  std::uint64_t unseen = 0;          // two pairs, and stored landmarks where the car saw none
   std::uint64_t matches = 0;
 };
 
@@ -48,11 +54,21 @@ class PlaceMatcher {
   explicit PlaceMatcher(const MatchConfig& config);
 
   bool enabled() const { return config_.place_landmarks > 0; }
+  // The fewest pairs a place may have.
+  unsigned min_pairs() const {
+    return config_.place_pair_min_bits > 0.0 ? std::min(2u, config_.place_landmarks)
+                                             : config_.place_landmarks;
+  }
   // A landmark just released (stored under its id); older ones beyond the
   // window are forgotten.
   void remember(const Landmark& landmark);
+  // The car's pose in a frame, at `odometer` metres driven: where it looked.
+  void remember_pose(const Pose2& pose, double odometer);
   // The pose was lost: the recent landmarks no longer share a frame.
-  void forget() { recent_.clear(); }
+  void forget() {
+    recent_.clear();
+    path_size_ = 0;
+  }
   // The best place match of the newest remembered landmark: fills `event`'s
   // landmarks, k, alignment, residual and score (not its relative pose).
   bool match(const SequenceDatabase& database, MatchEvent& event);
@@ -97,6 +113,21 @@ class PlaceMatcher {
   void fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const;
   // Sum over the pairs of -log2 of their label's share of the landmarks seen.
   double evidence_bits(const Hypothesis& h) const;
+  // Whether at each pair the two cars' headings, aligned, were nearly the
+  // same or opposite.
+  static bool along_one_road(const Hypothesis& h);
+  // The stored landmarks not paired that `h` puts where the car surely saw
+  // a marking on its recent path, since left behind, with no recent
+  // landmark of their label there.
+  unsigned unseen(const SequenceDatabase& database, const Hypothesis& h) const;
+  // Whether the car, on its recent path, had `p` in view over a few metres
+  // and has driven far enough since for a marking there to be released.
+  bool looked_at(const Eigen::Vector2d& p) const;
+  bool seen_recently(Label label, const Eigen::Vector2d& p) const;
+  // The box around the car's path within the place window.
+  void recent_path_bounds(Eigen::Vector2d& low, Eigen::Vector2d& high) const;
+  // Whether `stored` is (a piece of) one of `h`'s paired markings.
+  static bool piece_of_pair(const Landmark& stored, const Hypothesis& h);
 
   MatchConfig config_;
   FixedVector<Landmark, kMaxRecent> recent_;        // oldest first; the newest last
@@ -109,6 +140,18 @@ class PlaceMatcher {
   static constexpr std::size_t kLabelBuckets = 64;
   std::array<std::uint64_t, kLabelBuckets> label_counts_{};
   std::uint64_t landmarks_seen_ = 0;
+  // The car's recent path, a pose every kPathSpacing_m of driving (a ring).
+  struct PathPoint {
+    Pose2 pose;
+    double odometer = 0.0;
+  };
+  static constexpr std::size_t kMaxPath = 256;
+  std::array<PathPoint, kMaxPath> path_{};
+  std::size_t path_next_ = 0;
+  std::size_t path_size_ = 0;
+  const PathPoint& path_at(std::size_t age) const {  // 0: the newest
+    return path_[(path_next_ + kMaxPath - 1 - age) % kMaxPath];
+  }
 };
 
 }  // namespace markloop

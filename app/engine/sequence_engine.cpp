@@ -60,6 +60,12 @@ const char* validate(const EngineConfig& c) {
     return "place residual must be a positive number of metres";
   if (!finite_non_negative(c.match.place_min_bits) || c.match.place_min_bits > 1000.0)
     return "place evidence must lie between 0 and 1000 bits";
+  if (!finite_non_negative(c.match.place_pair_min_bits) || c.match.place_pair_min_bits > 1000.0)
+    return "two-marking place evidence must lie between 0 and 1000 bits";
+  if (!finite_non_negative(c.match.place_view_near_m) || !finite_positive(c.match.place_view_depth_m) ||
+      !finite_non_negative(c.match.place_view_side_m) ||
+      c.match.place_view_near_m + c.match.place_view_depth_m + c.match.place_view_side_m > 1000.0)
+    return "the view of a place of two must lie ahead within 1000 m, and be deeper than 0 m";
   if (!finite_positive(c.match.place_window_m) || !finite_positive(c.match.place_search_m))
     return "place window and search distance must be positive numbers of metres";
   if (!finite_positive(c.match.place_distinct_m) || c.match.place_distinct_m > 10000.0)
@@ -94,6 +100,7 @@ void SequenceEngine::process_frame(const FrameInput& frame, std::span<const Obse
     previous_pose_ = frame.pose;
     have_previous_pose_ = true;
     remember_frame(frame);
+    if (places_.enabled()) places_.remember_pose(frame.pose, odometer_);
   }
   tracker_.observe(frame, odometer_,
                    observations.first(std::min(observations.size(), kMaxObservationsPerFrame)));

@@ -134,6 +134,56 @@ TEST_CASE("a turn into an old street closes a loop after a few markings", "[engi
   }
 }
 
+TEST_CASE("a turn into an old street and off again after two markings closes a loop", "[engine][place]") {
+  const std::vector<Mark> world = town();
+  for (const double pair_bits : {0.0, 4.0}) {
+    INFO("bits for a place of two " << pair_bits);
+    EngineConfig config = place_config(3);
+    config.match.place_pair_min_bits = pair_bits;
+    SequenceEngine engine(config);
+    Car car(engine, world);
+    // As above, but off the old street again 2 markings after the turn in.
+    car.drive({{0, 0}, {330, 0}, {330, -300}, {231, -300}, {231, -1}, {268, -1}, {268, 200}});
+    engine.flush(car.sink);
+    const Outcome o = judge(car, car.sink.events);
+    CHECK(o.wrong == 0);
+    if (pair_bits == 0.0) {
+      CHECK(o.matches == 0);
+    } else {
+      REQUIRE(o.matches >= 1);
+      CHECK(car.sink.events[0].k == 2);
+      CHECK(engine.place_counters().unseen == 0);
+    }
+  }
+}
+
+TEST_CASE("a place of two is no loop where a stored marking went unseen on the way in", "[engine][place]") {
+  // Three markings; the third from the west (first passed) is gone when the
+  // car comes back: what is left is a place of two, and the car looked
+  // where the third was and saw nothing there.
+  for (const unsigned max_unseen : {0u, 1u}) {
+    INFO("unseen allowed " << max_unseen);
+    EngineConfig config = place_config(3);
+    config.match.place_pair_min_bits = 1.0;
+    config.match.place_pair_max_unseen = max_unseen;
+    SequenceEngine engine(config);
+    std::vector<Mark> world = {{90, -1, 3}, {100, -1, 14}, {106, -1, 15}};
+    Car car(engine, world);
+    car.drive({{0, 0}, {200, 0}, {200, 100}, {-40, 100}, {-40, 0}});
+    world.erase(world.begin());
+    car.drive({{-40, 0}, {200, 0}});
+    engine.flush(car.sink);
+    CHECK(judge(car, car.sink.events).wrong == 0);
+    if (max_unseen == 0) {
+      CHECK(car.sink.events.empty());
+      CHECK(engine.place_counters().unseen >= 1);
+    } else {
+      REQUIRE(car.sink.events.size() == 1);
+      CHECK(car.sink.events[0].k == 2);
+    }
+  }
+}
+
 TEST_CASE("a street driven back the other way is the same place", "[engine][place]") {
   const std::vector<Mark> world = town();
   SequenceEngine engine(place_config(3));
@@ -268,6 +318,13 @@ TEST_CASE("place matching settings are checked", "[engine][place]") {
   CHECK(validate(config) != nullptr);
   config.match.place_window_m = 60;
   config.match.place_max_residual_m = 0;
+  CHECK(validate(config) != nullptr);
+  config.match.place_max_residual_m = 0.5;
+  config.match.place_pair_min_bits = -1;
+  CHECK(validate(config) != nullptr);
+  config.match.place_pair_min_bits = 4;
+  CHECK(validate(config) == nullptr);
+  config.match.place_view_depth_m = 0;
   CHECK(validate(config) != nullptr);
 }
 

@@ -88,6 +88,12 @@ engine (each value must lie in the range given):
   --place-bits B         a place's labels must be rare enough: the sum of
                          -log2 of each label's share of the landmarks seen,
                          0 to 1000; default 0 (any labels)
+  --place-pair-bits B    a place of two markings counts when their labels
+                         give at least B bits (0 to 1000; default 0: a
+                         place needs --place markings)
+  --place-pair-unseen N  ... and when at most N stored markings lay, aligned,
+                         where the car surely looked and saw none of their
+                         label, 0 to 100; default 0
   --place-residual M     a place's rigid fit must be at most this far off
                          (RMS, and within --max-residual), 0.001 to 100 m;
                          default 0.5
@@ -177,6 +183,8 @@ constexpr OptionSpec kOptions[] = {
     {"--place-within", "M", "places only between visits this close along the drive"},
     {"--place-window", "M", "the landmarks released within this much driving make a place"},
     {"--place-bits", "B", "least evidence of a place's labels, in bits"},
+    {"--place-pair-bits", "B", "least evidence of a two-marking place, in bits"},
+    {"--place-pair-unseen", "N", "stored markings a two-marking place may leave unseen"},
     {"--place-residual", "M", "largest RMS residual of a place's fit"},
     {"--far-after", "M", "visits this far apart need a longer run"},
     {"--far-run", "M", "the run such a match needs"},
@@ -269,6 +277,12 @@ constexpr NumericOption kNumericOptions[] = {
     {"--place-bits",
      {0.0, 1000.0, "", false},
      [](Options& o, double v) { o.engine.match.place_min_bits = v; }},
+    {"--place-pair-bits",
+     {0.0, 1000.0, "", false},
+     [](Options& o, double v) { o.engine.match.place_pair_min_bits = v; }},
+    {"--place-pair-unseen",
+     {0.0, 100.0, "", true},
+     [](Options& o, double v) { o.engine.match.place_pair_max_unseen = static_cast<unsigned>(v); }},
     {"--place-residual",
      {0.001, 100.0, "metres", false},
      [](Options& o, double v) { o.engine.match.place_max_residual_m = v; }},
@@ -608,10 +622,13 @@ void print_counters(const Replay& r, const ReplayResult& result, unsigned k) {
   if (p.queries > 0)
     std::printf(
         "markloop-replay: places: %llu queries, %llu hypotheses (%llu with too few pairs, %llu failed the "
-        "rigid fit), %llu beyond the drift limits, %llu ambiguous, %llu too common, %llu matches\n",
+        "rigid fit), %llu beyond the drift limits, %llu ambiguous, %llu too common, %llu of two across "
+        "roads, "
+        "%llu of two with a marking unseen, %llu matches\n",
         (unsigned long long)p.queries, (unsigned long long)p.hypotheses, (unsigned long long)p.too_few_pairs,
         (unsigned long long)p.rejected_residual, (unsigned long long)p.rejected_drift,
-        (unsigned long long)p.ambiguous, (unsigned long long)p.too_common, (unsigned long long)p.matches);
+        (unsigned long long)p.ambiguous, (unsigned long long)p.too_common, (unsigned long long)p.across,
+        (unsigned long long)p.unseen, (unsigned long long)p.matches);
   if (c.matches_held_far > 0)
     std::printf("markloop-replay: %llu sequence matches held back (visits far apart, run too short)\n",
                 (unsigned long long)c.matches_held_far);
