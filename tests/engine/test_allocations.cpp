@@ -31,6 +31,7 @@ TEST_CASE("no heap allocation after start-up over a 60 km drive", "[engine][memo
   if (places) {
     config.match.place_landmarks = 3;
     config.match.place_min_bits = 4;
+    config.match.place_pair_min_bits = 4;  // places of two: the car's path kept
     config.match.far_run_m = 300;
   }
   // Small enough that both rings wrap many times during the drive.
