@@ -293,11 +293,14 @@ bool PlaceMatcher::disagree(const Hypothesis& a, const Hypothesis& b) const {
 bool PlaceMatcher::along_one_road(const Hypothesis& h) {
   for (const Pair& p : h.pairs) {
     const std::optional<Pose2> relative = relative_car_pose(h.fit.transform, *p.query, *p.stored);
-    if (!relative) return false;
-    const double turned = std::abs(relative->yaw) * kDegreesPerRadian;
-    if (turned > kAlongRoad_deg && turned < 180.0 - kAlongRoad_deg) return false;
+    if (!relative || !along_one_road(relative->yaw, 0.0)) return false;
   }
   return true;
+}
+
+bool PlaceMatcher::along_one_road(double yaw_a, double yaw_b) {
+  const double turned = std::abs(wrap_angle(yaw_a - yaw_b)) * kDegreesPerRadian;
+  return turned <= kAlongRoad_deg || turned >= 180.0 - kAlongRoad_deg;
 }
 
 unsigned PlaceMatcher::unseen(const SequenceDatabase& database, const Hypothesis& h) const {
@@ -318,7 +321,9 @@ unsigned PlaceMatcher::unseen(const SequenceDatabase& database, const Hypothesis
                                     [&](const Landmark& stored) {
                                       if (!old_enough(stored, newest) || piece_of_pair(stored, h)) return;
                                       const Eigen::Vector2d p = moved(h.fit.transform, point(stored));
-                                      if (looked_at(p) && !seen_recently(stored.label, p)) ++count;
+                                      const double passed_yaw = stored.car_yaw + h.fit.transform.yaw;
+                                      if (looked_at(p, passed_yaw) && !seen_recently(stored.label, p))
+                                        ++count;
                                     });
   }
   return count;
@@ -340,12 +345,13 @@ bool PlaceMatcher::piece_of_pair(const Landmark& stored, const Hypothesis& h) {
   return false;
 }
 
-bool PlaceMatcher::looked_at(const Eigen::Vector2d& p) const {
+bool PlaceMatcher::looked_at(const Eigen::Vector2d& p, double passed_yaw) const {
   const double now = path_at(0).odometer;
   const double window_start = now - config_.place_window_m;
   double first = -1.0, last = -1.0;
   for (std::size_t age = 0; age < path_size_ && path_at(age).odometer >= window_start; ++age) {
     const PathPoint& at = path_at(age);
+    if (!along_one_road(at.pose.yaw, passed_yaw)) continue;
     const double dx = p.x() - at.pose.x, dy = p.y() - at.pose.y;
     const double ahead = std::cos(at.pose.yaw) * dx + std::sin(at.pose.yaw) * dy;
     const double left = -std::sin(at.pose.yaw) * dx + std::cos(at.pose.yaw) * dy;

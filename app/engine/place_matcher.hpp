@@ -116,13 +116,17 @@ class PlaceMatcher {
   // Whether at each pair the two cars' headings, aligned, were nearly the
   // same or opposite.
   static bool along_one_road(const Hypothesis& h);
+  // Whether two headings are nearly the same or opposite.
+  static bool along_one_road(double yaw_a, double yaw_b);
   // The stored landmarks not paired that `h` puts where the car surely saw
   // a marking on its recent path, since left behind, with no recent
   // landmark of their label there.
   unsigned unseen(const SequenceDatabase& database, const Hypothesis& h) const;
-  // Whether the car, on its recent path, had `p` in view over a few metres
-  // and has driven far enough since for a marking there to be released.
-  bool looked_at(const Eigen::Vector2d& p) const;
+  // Whether the car, on its recent path, had `p` in view over a few metres,
+  // driving along the road it was passed on with heading `passed_yaw` (seen
+  // from the side, a marking is not surely detected), and has driven far
+  // enough since for a marking there to be released.
+  bool looked_at(const Eigen::Vector2d& p, double passed_yaw) const;
   bool seen_recently(Label label, const Eigen::Vector2d& p) const;
   // The box around the car's path within the place window.
   void recent_path_bounds(Eigen::Vector2d& low, Eigen::Vector2d& high) const;

@@ -203,31 +203,20 @@ class Bench {
   // A place query where four stored landmarks are seen again, 0.1 m off:
   // the newest one's neighbours, their partners, the fit and the rival check.
   void time_place(std::mt19937_64& pick) {
-    const LandmarkId first = db_.first_landmark_id(), next = db_.next_landmark_id();
-    const LandmarkId at = first + kK + static_cast<LandmarkId>(pick() % (next - first - 2 * kK));
+    const LandmarkId at = pick_landmark(pick);
     PlaceMatcher places(place_config());
     const double later = stream_.along() + 1000.0;
-    for (LandmarkId id = at - kK + 1; id <= at; ++id) {
-      Landmark seen = *db_.landmark(id);
-      seen.x += 0.1f;
-      seen.station += later;
-      seen.t += later / 10.0;
-      places.remember(seen);
-    }
-    MatchEvent event;
-    const auto start = Clock::now();
-    sink_ += places.match(db_, event);
-    place_ns_.push_back(std::chrono::duration<double, std::nano>(Clock::now() - start).count());
+    for (LandmarkId id = at - kK + 1; id <= at; ++id) places.remember(seen_again(id, later));
+    time_match(places, place_ns_);
   }
 
   // A place of two: two stored landmarks seen again, 0.1 m off, by a car
   // that drove 60 m towards them along their road, so that every stored
   // landmark it looked at is checked as well.
   void time_place_of_two(std::mt19937_64& pick) {
-    const LandmarkId first = db_.first_landmark_id(), next = db_.next_landmark_id();
-    const LandmarkId at = first + kK + static_cast<LandmarkId>(pick() % (next - first - 2 * kK));
+    const LandmarkId at = pick_landmark(pick);
     LandmarkId before = at - 1;
-    while (before > first && db_.landmark(before)->x == db_.landmark(at)->x) --before;
+    while (before > db_.first_landmark_id() && db_.landmark(before)->x == db_.landmark(at)->x) --before;
     MatchConfig mc = place_config();
     mc.place_pair_min_bits = 1.0;
     PlaceMatcher places(mc);
@@ -235,17 +224,31 @@ class Bench {
     const double newest_x = db_.landmark(at)->x;
     for (double x = newest_x - 60.0; x <= newest_x + 14.0; x += 0.5)
       places.remember_pose({x + 0.1, 0.0, 0.0}, x + later);
-    for (const LandmarkId id : {before, at}) {
-      Landmark seen = *db_.landmark(id);
-      seen.x += 0.1f;
-      seen.station += later;
-      seen.t += later / 10.0;
-      places.remember(seen);
-    }
+    for (const LandmarkId id : {before, at}) places.remember(seen_again(id, later));
+    time_match(places, place_of_two_ns_);
+  }
+
+  // A stored landmark with kK stored before it and after it.
+  LandmarkId pick_landmark(std::mt19937_64& pick) const {
+    const LandmarkId first = db_.first_landmark_id(), next = db_.next_landmark_id();
+    return first + kK + static_cast<LandmarkId>(pick() % (next - first - 2 * kK));
+  }
+
+  // Stored landmark `id` seen again `later` metres (and seconds at 10 m/s)
+  // on, 0.1 m off.
+  Landmark seen_again(LandmarkId id, double later) const {
+    Landmark seen = *db_.landmark(id);
+    seen.x += 0.1f;
+    seen.station += later;
+    seen.t += later / 10.0;
+    return seen;
+  }
+
+  void time_match(PlaceMatcher& places, std::vector<double>& ns) {
     MatchEvent event;
     const auto start = Clock::now();
     sink_ += places.match(db_, event);
-    place_of_two_ns_.push_back(std::chrono::duration<double, std::nano>(Clock::now() - start).count());
+    ns.push_back(std::chrono::duration<double, std::nano>(Clock::now() - start).count());
   }
 
   MatchConfig place_config() const {
