@@ -42,8 +42,9 @@ constexpr double kReleasedPast_m = 6.0;
 // this much of where the place puts it.
 constexpr double kSeenWithin_m = 1.5;
 // At each pair of a place of two the cars drove along one road, one way or
-// the other: headings this close to the same or the opposite. Met from a
-// cross street, one intersection's markings are seen from elsewhere.
+// the other: headings this close to the same or the opposite (met from a
+// cross street, one intersection's markings are seen from elsewhere). A
+// stored marking is looked for only from along the road it was passed on.
 constexpr double kAlongRoad_deg = 30.0;
 
 Eigen::Vector2d point(const Landmark& l) {
@@ -348,7 +349,8 @@ bool PlaceMatcher::piece_of_pair(const Landmark& stored, const Hypothesis& h) {
 bool PlaceMatcher::looked_at(const Eigen::Vector2d& p, double passed_yaw) const {
   const double now = path_at(0).odometer;
   const double window_start = now - config_.place_window_m;
-  double first = -1.0, last = -1.0;
+  bool in_view = false;
+  double first = 0.0, last = 0.0;  // odometer, in view
   for (std::size_t age = 0; age < path_size_ && path_at(age).odometer >= window_start; ++age) {
     const PathPoint& at = path_at(age);
     if (!along_one_road(at.pose.yaw, passed_yaw)) continue;
@@ -358,11 +360,11 @@ bool PlaceMatcher::looked_at(const Eigen::Vector2d& p, double passed_yaw) const 
     if (ahead < config_.place_view_near_m || ahead > config_.place_view_near_m + config_.place_view_depth_m ||
         std::abs(left) > config_.place_view_side_m)
       continue;
-    if (last < 0.0) last = at.odometer;
+    if (!in_view) last = at.odometer;
+    in_view = true;
     first = at.odometer;
   }
-  return last >= 0.0 && last - first >= kLookedAt_m &&
-         now - last >= config_.place_view_near_m + kReleasedPast_m;
+  return in_view && last - first >= kLookedAt_m && now - last >= config_.place_view_near_m + kReleasedPast_m;
 }
 
 bool PlaceMatcher::seen_recently(Label label, const Eigen::Vector2d& p) const {
