@@ -273,10 +273,10 @@ bool is_piece_of_larger(std::span<const Candidate> candidates, std::size_t index
     const int shared_cols = cols_shared(c, outer);
     const int shared_rows = rows_shared(c, outer);
     if (shared_cols <= 0 || shared_rows <= 0) continue;
-    const int area = (c.col1 - c.col0 + 1) * (c.row1 - c.row0 + 1);
+    const int area = cols_of(c) * rows_of(c);
     const bool mostly_inside =
         static_cast<float>(shared_cols * shared_rows) >= kPieceMinInside * static_cast<float>(area);
-    const bool larger = (outer.col1 - outer.col0 + 1) * (outer.row1 - outer.row0 + 1) > area;
+    const bool larger = cols_of(outer) * rows_of(outer) > area;
     if (mostly_inside && larger) return true;
   }
   return false;

@@ -48,15 +48,14 @@ std::size_t PartGrouper::group(std::span<const Part> parts, std::span<const Part
 }
 
 std::uint8_t PartGrouper::groupable(const Part& p) const {
-  const bool bar = p.col1 - p.col0 + 1 >= px_.bar_min_cols && p.row1 - p.row0 + 1 <= px_.bar_max_rows;
+  const bool bar = cols_of(p) >= px_.bar_min_cols && rows_of(p) <= px_.bar_max_rows;
   // A thin part running out of the view (a lane dash coming into sight,
   // too short yet to be set apart as a line; on a bend at an angle) would
   // make a marking it joins look cut by the edge.
-  const bool line_coming_in =
-      (p.col1 - p.col0 + 1 <= px_.line_cols || p.thin) && (touched_edges(p) & kOtherEdge) != 0;
+  const bool line_coming_in = (cols_of(p) <= px_.line_cols || p.thin) && (touched_edges(p) & kOtherEdge) != 0;
   if (p.col1 - p.col0 >= px_.max_cols || p.row1 - p.row0 >= px_.max_rows || bar || line_coming_in) return 0;
   // (A piece of a lane dash is as thin as a line, a stripe wider.)
-  const int rows = p.row1 - p.row0 + 1, cols = p.col1 - p.col0 + 1;
+  const int rows = rows_of(p), cols = cols_of(p);
   const float fill = static_cast<float>(p.area) / static_cast<float>(rows * cols);
   const bool stripe = rows >= px_.stripe_min_rows && cols > px_.line_cols && cols <= px_.stripe_max_cols &&
                       fill >= config_.stripe_min_fill;
@@ -133,8 +132,8 @@ std::size_t PartGrouper::keep_marking_sized(std::span<Candidate> candidates, std
   std::size_t kept = 0;
   for (std::size_t i = 0; i < count; ++i) {
     Candidate& c = candidates[i];
-    c.length_m = static_cast<float>(c.row1 - c.row0 + 1) * x_step_m_;
-    c.width_m = static_cast<float>(c.col1 - c.col0 + 1) * y_step_m_;
+    c.length_m = static_cast<float>(rows_of(c)) * x_step_m_;
+    c.width_m = static_cast<float>(cols_of(c)) * y_step_m_;
     if (c.length_m > max_length_m_ || c.width_m > max_width_m_) {
       ++counters.oversize;
       continue;

@@ -129,8 +129,8 @@ void PartLabeller::keep_parts(const cv::Mat& mask, int labels, LaneHorizon* lane
     const PartAxis part_axis = axis(box, label_moments_[label]);
     if (lanes != nullptr) lanes->note(part_axis);
     if (set_apart_as_line(mask, label, part_axis, counters)) continue;
-    const float length = static_cast<float>(box.row1 - box.row0 + 1) * x_step_m_;
-    const float width = static_cast<float>(box.col1 - box.col0 + 1) * y_step_m_;
+    const float length = static_cast<float>(rows_of(box)) * x_step_m_;
+    const float width = static_cast<float>(cols_of(box)) * y_step_m_;
     if (length > config_.max_marking_length_m || width > config_.max_marking_width_m) {
       ++counters.oversize;
       continue;
@@ -147,10 +147,9 @@ void PartLabeller::keep_parts(const cv::Mat& mask, int labels, LaneHorizon* lane
 bool PartLabeller::set_apart_as_line(const cv::Mat& mask, int label, const PartAxis& part_axis,
                                      DetectorCounters& counters) {
   const Part& box = label_box_[label];
-  const float length = static_cast<float>(box.row1 - box.row0 + 1) * x_step_m_;
-  const float width = static_cast<float>(box.col1 - box.col0 + 1) * y_step_m_;
-  const float fill = static_cast<float>(box.area) /
-                     static_cast<float>((box.row1 - box.row0 + 1) * (box.col1 - box.col0 + 1));
+  const float length = static_cast<float>(rows_of(box)) * x_step_m_;
+  const float width = static_cast<float>(cols_of(box)) * y_step_m_;
+  const float fill = static_cast<float>(box.area) / static_cast<float>(rows_of(box) * cols_of(box));
   // Lines at an angle to the view's columns (a bend, a road crossed
   // obliquely) are thin along their own axis, not their box's.
   const bool oblique_line =
@@ -207,8 +206,8 @@ bool PartLabeller::encloses_road(const cv::Mat& mask, int label, const Part& box
     fill_queue_[tail++] = index;
   };
   for (int row = box.row0; row <= box.row1; ++row)
-    std::fill_n(fill_reached_.begin() + static_cast<std::ptrdiff_t>(row) * cols + box.col0,
-                box.col1 - box.col0 + 1, std::uint8_t{0});
+    std::fill_n(fill_reached_.begin() + static_cast<std::ptrdiff_t>(row) * cols + box.col0, cols_of(box),
+                std::uint8_t{0});
   for (int col = box.col0; col <= box.col1; ++col) {
     reach(box.row0, col);
     reach(box.row1, col);
@@ -225,7 +224,7 @@ bool PartLabeller::encloses_road(const cv::Mat& mask, int label, const Part& box
     if (col > box.col0) reach(row, col - 1);
     if (col < box.col1) reach(row, col + 1);
   }
-  const int box_pixels = (box.row1 - box.row0 + 1) * (box.col1 - box.col0 + 1);
+  const int box_pixels = rows_of(box) * cols_of(box);
   const int enclosed = box_pixels - box.area - static_cast<int>(tail);
   return enclosed >= min_enclosed;
 }

@@ -143,8 +143,8 @@ bool reports_others(std::span<const std::int32_t> reported_by, std::size_t first
 Candidate joined_candidate(std::span<const Candidate> candidates, std::span<const std::int32_t> reported_by,
                            std::size_t first) {
   Candidate c = candidates[first];
-  const float metres_per_row = c.length_m / static_cast<float>(c.row1 - c.row0 + 1);
-  const float metres_per_col = c.width_m / static_cast<float>(c.col1 - c.col0 + 1);
+  const float metres_per_row = c.length_m / static_cast<float>(rows_of(c));
+  const float metres_per_col = c.width_m / static_cast<float>(cols_of(c));
   bool cut_elsewhere = c.clipped && !c.clipped_near_only;
   for (std::size_t j = 0; j < candidates.size() && j < reported_by.size(); ++j) {
     if (j == first || reported_by[j] != static_cast<std::int32_t>(first)) continue;
@@ -155,8 +155,8 @@ Candidate joined_candidate(std::span<const Candidate> candidates, std::span<cons
     c.clipped = c.clipped || other.clipped;
     cut_elsewhere = cut_elsewhere || (other.clipped && !other.clipped_near_only);
   }
-  c.length_m = metres_per_row * static_cast<float>(c.row1 - c.row0 + 1);
-  c.width_m = metres_per_col * static_cast<float>(c.col1 - c.col0 + 1);
+  c.length_m = metres_per_row * static_cast<float>(rows_of(c));
+  c.width_m = metres_per_col * static_cast<float>(cols_of(c));
   c.clipped_near_only = c.clipped && !cut_elsewhere;
   return c;
 }
