@@ -471,9 +471,10 @@ constexpr Setting kSettings[] = {
      .unit = "bits",
      .section = S::kEngine,
      .description = "a place of two markings (fewer than engine.place_landmarks) closes a loop when "
-                    "their labels give this many bits and no stored marking lies, aligned, where the "
-                    "car surely looked on its way in with nothing of its label seen there "
-                    "(engine.place_pair_max_unseen); 0: a place needs engine.place_landmarks"},
+                    "their labels give this many bits, the cars drove one road at both, and no stored "
+                    "marking lies, aligned, where the car surely looked on its way in with nothing of "
+                    "its label seen there (engine.place_pair_max_unseen); 0: a place needs "
+                    "engine.place_landmarks"},
     {.key = "engine.place_pair_max_unseen",
      .kind = K::kInteger,
      .member = member([](auto& c) -> auto& { return c.engine.match.place_pair_max_unseen; }),

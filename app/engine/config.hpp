@@ -111,10 +111,11 @@ struct MatchConfig {
   // of each label's share of the landmarks seen so far (0: any labels).
   double place_min_bits = 0.0;
   // A place of two pairs, fewer than place_landmarks, counts when its labels
-  // give at least this many bits, no rival of two pairs or more fits, and
-  // no more than place_pair_max_unseen stored landmarks lay, aligned, where
-  // the car looked on its way in without anything of their label seen
-  // there (0: a place needs place_landmarks pairs).
+  // give at least this many bits, the cars drove one road at both pairs, no
+  // rival of two pairs or more fits, and no more than place_pair_max_unseen
+  // stored landmarks lay, aligned, where the car looked on its way in
+  // without anything of their label seen there (0: a place needs
+  // place_landmarks pairs).
   double place_pair_min_bits = 0.0;
   unsigned place_pair_max_unseen = 0;
   // Where the car surely sees a marking (the observations' ground area,
