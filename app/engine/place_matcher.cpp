@@ -318,14 +318,13 @@ unsigned PlaceMatcher::unseen(const SequenceDatabase& database, const Hypothesis
   unsigned count = 0;
   for (std::size_t bucket = 0; bucket < kLabelBuckets; ++bucket) {
     if (label_counts_[bucket] == 0) continue;
-    database.for_each_landmark_near(static_cast<Label>(bucket), centre.x(), centre.y(), reach, kPerCell,
-                                    [&](const Landmark& stored) {
-                                      if (!old_enough(stored, newest) || piece_of_pair(stored, h)) return;
-                                      const Eigen::Vector2d p = moved(h.fit.transform, point(stored));
-                                      const double passed_yaw = stored.car_yaw + h.fit.transform.yaw;
-                                      if (looked_at(p, passed_yaw) && !seen_recently(stored.label, p))
-                                        ++count;
-                                    });
+    database.for_each_landmark_near(
+        static_cast<Label>(bucket), centre.x(), centre.y(), reach, kPerCell, [&](const Landmark& stored) {
+          if (!old_enough(stored, newest) || !on_fitted_visit(stored, h) || piece_of_pair(stored, h)) return;
+          const Eigen::Vector2d p = moved(h.fit.transform, point(stored));
+          const double passed_yaw = stored.car_yaw + h.fit.transform.yaw;
+          if (looked_at(p, passed_yaw) && !seen_recently(stored.label, p)) ++count;
+        });
   }
   return count;
 }
@@ -343,6 +342,12 @@ bool PlaceMatcher::piece_of_pair(const Landmark& stored, const Hypothesis& h) {
   for (const Pair& pair : h.pairs)
     if (stored.label == pair.stored->label && (point(stored) - point(*pair.stored)).norm() < kPieces_m)
       return true;
+  return false;
+}
+
+bool PlaceMatcher::on_fitted_visit(const Landmark& stored, const Hypothesis& h) const {
+  for (const Pair& pair : h.pairs)
+    if (std::abs(stored.station - pair.stored->station) <= config_.place_window_m) return true;
   return false;
 }
 

@@ -184,6 +184,30 @@ TEST_CASE("a place of two is no loop where a stored marking went unseen on the w
   }
 }
 
+TEST_CASE("another visit's copy of a paired marking, drifted along the road, is not unseen", "[engine][place]") {
+  // Two markings on a street driven north three times. From the second visit
+  // on, the odometry places everything 6 m further north: aligned onto the
+  // second visit, the first visit's copies of the two markings lie 6 m behind
+  // the landmarks, where the car looked and saw none.
+  const std::vector<Mark> world = {{1, 100, 14}, {1, 106, 15}};
+  EngineConfig config = place_config(3);
+  config.match.place_pair_min_bits = 1.0;
+  config.match.place_pair_max_unseen = 0;
+  SequenceEngine engine(config);
+  Car car(engine, world);
+  const std::vector<Point> block = {{0, 0}, {0, 200}, {-150, 200}, {-150, -50}, {0, -50}, {0, 0}};
+  car.drive(block);
+  car.drift = 6.0;
+  car.drive(block);
+  car.drive({{0, 0}, {0, 200}});
+  engine.flush(car.sink);
+  CHECK(judge(car, car.sink.events).wrong == 0);
+  // One loop for each revisit.
+  REQUIRE(car.sink.events.size() == 2);
+  CHECK(car.sink.events[1].k == 2);
+  CHECK(engine.place_counters().unseen == 0);
+}
+
 TEST_CASE("a street driven back the other way is the same place", "[engine][place]") {
   const std::vector<Mark> world = town();
   SequenceEngine engine(place_config(3));
