@@ -184,7 +184,8 @@ TEST_CASE("a place of two is no loop where a stored marking went unseen on the w
   }
 }
 
-TEST_CASE("another visit's copy of a paired marking, drifted along the road, is not unseen", "[engine][place]") {
+TEST_CASE("another visit's copy of a paired marking, drifted along the road, is not unseen",
+          "[engine][place]") {
   // Two markings on a street driven north three times. From the second visit
   // on, the odometry places everything 6 m further north: aligned onto the
   // second visit, the first visit's copies of the two markings lie 6 m behind
