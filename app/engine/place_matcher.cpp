@@ -46,6 +46,9 @@ constexpr double kSeenWithin_m = 1.5;
 // cross street, one intersection's markings are seen from elsewhere). A
 // stored marking is looked for only from along the road it was passed on.
 constexpr double kAlongRoad_deg = 30.0;
+// A car turning into the road passes its first markings mid-turn: its
+// heading this far past them shows the road it turned into.
+constexpr double kTurnedIn_m = 10.0;
 
 Eigen::Vector2d point(const Landmark& l) {
   return {l.x, l.y};
@@ -139,11 +142,15 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
     ++counters_.too_common;
     return false;
   }
-  if (pair_only && !along_one_road(hypotheses_[best])) {
+  const Roads on = pair_only ? roads(hypotheses_[best]) : Roads::One;
+  if (on == Roads::Across) {
     ++counters_.across;
     return false;
   }
-  if (pair_only && unseen(database, hypotheses_[best]) > config_.place_pair_max_unseen) {
+  // A car passing a marking mid-turn could have passed another of the
+  // intersection's: nothing may go unseen.
+  const unsigned max_unseen = on == Roads::TurnedIn ? 0u : config_.place_pair_max_unseen;
+  if (pair_only && unseen(database, hypotheses_[best]) > max_unseen) {
     ++counters_.unseen;
     return false;
   }
@@ -291,12 +298,25 @@ bool PlaceMatcher::disagree(const Hypothesis& a, const Hypothesis& b) const {
   return (point(anchor_a) - point(anchor_b)).norm() > drifted + kDistinct_m;
 }
 
-bool PlaceMatcher::along_one_road(const Hypothesis& h) {
+PlaceMatcher::Roads PlaceMatcher::roads(const Hypothesis& h) const {
+  Roads roads = Roads::One;
   for (const Pair& p : h.pairs) {
-    const std::optional<Pose2> relative = relative_car_pose(h.fit.transform, *p.query, *p.stored);
-    if (!relative || !along_one_road(relative->yaw, 0.0)) return false;
+    if (!p.query->has_car_pose || !p.stored->has_car_pose) return Roads::Across;
+    const double stored_yaw = p.stored->car_yaw + h.fit.transform.yaw;
+    if (along_one_road(p.query->car_yaw, stored_yaw)) continue;
+    if (!along_one_road(heading_after(*p.query), stored_yaw)) return Roads::Across;
+    roads = Roads::TurnedIn;
   }
-  return true;
+  return roads;
+}
+
+double PlaceMatcher::heading_after(const Landmark& query) const {
+  // The newest pose at most kTurnedIn_m past the landmark.
+  if (path_size_ == 0) return query.car_yaw;
+  const double at = query.station + kTurnedIn_m;
+  std::size_t age = 0;
+  while (age + 1 < path_size_ && path_at(age).odometer > at) ++age;
+  return path_at(age).pose.yaw;
 }
 
 bool PlaceMatcher::along_one_road(double yaw_a, double yaw_b) {

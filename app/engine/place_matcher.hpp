@@ -114,8 +114,12 @@ class PlaceMatcher {
   // Sum over the pairs of -log2 of their label's share of the landmarks seen.
   double evidence_bits(const Hypothesis& h) const;
   // Whether at each pair the two cars' headings, aligned, were nearly the
-  // same or opposite.
-  static bool along_one_road(const Hypothesis& h);
+  // same or opposite where they passed it (One), at some pair only a little
+  // later (TurnedIn: the car turned into the road there), or not (Across).
+  enum class Roads { One, TurnedIn, Across };
+  Roads roads(const Hypothesis& h) const;
+  // The car's heading on its recent path a little past `query`, or now.
+  double heading_after(const Landmark& query) const;
   // Whether two headings are nearly the same or opposite.
   static bool along_one_road(double yaw_a, double yaw_b);
   // The stored landmarks not paired that `h` puts where the car surely saw

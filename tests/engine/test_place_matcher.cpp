@@ -157,6 +157,23 @@ TEST_CASE("a turn into an old street and off again after two markings closes a l
   }
 }
 
+TEST_CASE("a car turning into an old street closes a loop at its second marking", "[engine][place]") {
+  // Back from the south, the car turns east into the street and passes its
+  // first marking mid-turn, 41 degrees off the street: by its heading a
+  // little later it drove the street.
+  const std::vector<Mark> world = {{100, -4, 14}, {115, -1, 15}};
+  EngineConfig config = place_config(3);
+  config.match.place_pair_min_bits = 1.0;
+  SequenceEngine engine(config);
+  Car car(engine, world);
+  car.drive({{0, 0}, {200, 0}, {200, -150}, {95, -150}, {95, -8}, {103, -1}, {200, -1}});
+  engine.flush(car.sink);
+  CHECK(judge(car, car.sink.events).wrong == 0);
+  REQUIRE(car.sink.events.size() == 1);
+  CHECK(car.sink.events[0].k == 2);
+  CHECK(engine.place_counters().across == 0);
+}
+
 TEST_CASE("a place of two is no loop where a stored marking went unseen on the way in", "[engine][place]") {
   // Three markings; the third from the west (first passed) is gone when the
   // car comes back: what is left is a place of two, and the car looked
