@@ -137,12 +137,17 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
       best = i;
   }
   if (best == found) return false;
-  const bool pair_only = hypotheses_[best].pairs.size() < config_.place_landmarks;
-  if (evidence_bits(hypotheses_[best]) < (pair_only ? config_.place_pair_min_bits : config_.place_min_bits)) {
+  // A place of two, or of more markings whose labels say too little (an
+  // intersection's crosswalks and stop line), is judged by the checks that
+  // make two pairs enough.
+  const double bits = evidence_bits(hypotheses_[best]);
+  const bool checked = hypotheses_[best].pairs.size() < config_.place_landmarks ||
+                       (config_.place_pair_min_bits > 0.0 && bits < config_.place_min_bits);
+  if (bits < (checked ? config_.place_pair_min_bits : config_.place_min_bits)) {
     ++counters_.too_common;
     return false;
   }
-  const Roads on = pair_only ? roads(hypotheses_[best]) : Roads::One;
+  const Roads on = checked ? roads(hypotheses_[best]) : Roads::One;
   if (on == Roads::Across) {
     ++counters_.across;
     return false;
@@ -150,14 +155,14 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
   // A car passing a marking mid-turn could have passed another of the
   // intersection's: nothing may go unseen.
   const unsigned max_unseen = on == Roads::TurnedIn ? 0u : config_.place_pair_max_unseen;
-  if (pair_only && unseen(database, hypotheses_[best]) > max_unseen) {
+  if (checked && unseen(database, hypotheses_[best]) > max_unseen) {
     ++counters_.unseen;
     return false;
   }
   // ...with no plausible rival: another visit of the same place agrees. A
-  // place of two pairs has rivals of two pairs too.
+  // checked place has rivals of two pairs too.
   for (std::size_t i = 0; i < found; ++i) {
-    if (!pair_only && hypotheses_[i].pairs.size() < config_.place_landmarks) continue;
+    if (!checked && hypotheses_[i].pairs.size() < config_.place_landmarks) continue;
     if (plausible(hypotheses_[i]) && disagree(hypotheses_[i], hypotheses_[best])) {
       ++counters_.ambiguous;
       return false;

@@ -14,7 +14,8 @@
 //        car at (a few times the drift limits, within `place_distinct_m`)
 //        fits as well: a constellation repeated nearby (the same
 //        intersection layout a block away) is never a place.
-//     -> a place of two pairs (`place_pair_min_bits`) also needs the cars
+//     -> a place of two pairs (`place_pair_min_bits`), or of more whose
+//        labels are too common for `place_min_bits`, also needs the cars
 //        driving one road at both, and every stored landmark it puts where
 //        the car surely looked on its way in seen there again
 //        (`place_pair_max_unseen`).

@@ -2,6 +2,7 @@
 // markings it sees 4..20 m ahead, as the sequence tests do.
 #include <catch2/catch_test_macros.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -172,6 +173,32 @@ TEST_CASE("a car turning into an old street closes a loop at its second marking"
   REQUIRE(car.sink.events.size() == 1);
   CHECK(car.sink.events[0].k == 2);
   CHECK(engine.place_counters().across == 0);
+}
+
+TEST_CASE("a place of three with common labels is judged as a place of two", "[engine][place]") {
+  // No labels are rare enough for a place of three here: with places of two
+  // on, three pairs that pass their checks close the loop.
+  const std::vector<Mark> world = {{100, -1, 14}, {106, -1, 15}, {114, -1, 1}};
+  for (const double pair_bits : {0.0, 1.0}) {
+    INFO("bits for a place of two " << pair_bits);
+    EngineConfig config = place_config(3);
+    config.match.place_min_bits = 100.0;
+    config.match.place_pair_min_bits = pair_bits;
+    SequenceEngine engine(config);
+    Car car(engine, world);
+    car.drive({{0, 0}, {200, 0}, {200, 100}, {-40, 100}, {-40, 0}, {200, 0}});
+    engine.flush(car.sink);
+    CHECK(judge(car, car.sink.events).wrong == 0);
+    if (pair_bits == 0.0) {
+      CHECK(car.sink.events.empty());
+      CHECK(engine.place_counters().too_common >= 1);
+    } else {
+      // The first two pairs already make a place of two; the third makes one
+      // of three, which its labels alone would not.
+      CHECK(std::any_of(car.sink.events.begin(), car.sink.events.end(),
+                        [](const MatchEvent& e) { return e.k == 3; }));
+    }
+  }
 }
 
 TEST_CASE("a place of two is no loop where a stored marking went unseen on the way in", "[engine][place]") {
