@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "app/common/units.hpp"
+#include "app/ecu/observation.hpp"
 #include "app/perception/marking_classes.hpp"
 #include "dbc/markloop_messages.hpp"
 #include "dbc/receive.hpp"
@@ -12,10 +13,6 @@
 namespace markloop::ecu {
 
 namespace {
-
-// A detection's ground position error grows about linearly with range; this
-// is the range at which it is twice that of a marking at the bumper.
-constexpr double kPositionErrorDoublingRange_m = 5.0;
 
 can::CanFrame to_can(const dbc::CanFrame& frame) {
   can::CanFrame out;
@@ -157,27 +154,16 @@ void Ecu::process(std::span<const perception::Detection> detections, Nanoseconds
   observations_.clear();
   if (input.has_pose) {
     input.pose = odometry_.pose_at(frame_time);
-    const double c = std::cos(input.pose.yaw), s = std::sin(input.pose.yaw);
     for (const perception::Detection& d : detections) {
-      if (d.label >= perception::kMarkingClassCount || !std::isfinite(d.ground_x) ||
-          !std::isfinite(d.ground_y)) {
-        ++counters_.detections_rejected;
-        continue;
-      }
-      if (d.score < config_.gate.min_score || d.ground_x < config_.gate.min_range_m ||
-          d.ground_x > config_.gate.max_range_m) {
-        ++counters_.detections_gated;
-        continue;
-      }
       Observation o;
-      o.label = d.label;
-      o.x = static_cast<float>(input.pose.x + c * d.ground_x - s * d.ground_y);
-      o.y = static_cast<float>(input.pose.y + s * d.ground_x + c * d.ground_y);
-      // A pixel covers more ground, and a pitch error moves it further, the
-      // further ahead it lies: inverse variance, error growing with range.
-      const double spread = 1.0 + d.ground_x / kPositionErrorDoublingRange_m;
-      o.weight = static_cast<float>(1.0 / (spread * spread));
-      if (!observations_.push_back(o)) ++counters_.detections_rejected;
+      const Observed observed =
+          d.label < perception::kMarkingClassCount
+              ? observe(d.label, d.score, d.ground_x, d.ground_y, input.pose, config_.gate, o)
+              : Observed::kRejected;
+      if (observed == Observed::kGated)
+        ++counters_.detections_gated;
+      else if (observed != Observed::kYes || !observations_.push_back(o))
+        ++counters_.detections_rejected;
     }
   } else {
     // Without a pose the markings cannot be placed in the world: detect only,

@@ -8,7 +8,7 @@ source "$(dirname "$0")/../cli_check.sh"
 
 check "replay --help" 0 "usage: markloop-replay" -- "$replay" --help
 check "sim --help" 0 "usage: markloop-sim" -- "$sim" --help
-check "missing option" 2 "--markings FILE is required" -- "$replay"
+check "missing option" 2 "one of --markings FILE and --ecu-detections FILE is required" -- "$replay"
 check "unknown option" 2 "unknown option --frobnicate" -- "$replay" --markings x --frobnicate
 check "missing file" 2 "^markloop-replay: $work/none.txt: cannot open" -- "$replay" --markings "$work/none.txt"
 
@@ -48,6 +48,25 @@ check "bad value before --help" 2 "^markloop-replay: --k: 11 is outside 2 to 10$
 check "bad value after --help" 0 "usage: markloop-replay" -- "$replay" --help --k 11
 check "stray argument" 2 "^markloop-replay: unexpected argument stray \(see --help\)$" -- \
   "$replay" --markings "$work/one.txt" stray
+
+# The ECU's detections: placed with the poses and gated as the ECU gates
+# them (score 0.6, 5.5 to 16 m ahead).
+header=frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y
+printf '%s\n0,forward,0.9,1,2,3,4,5,6,7,8,10,0\n1,forward,0.3,1,2,3,4,5,6,7,8,9,0\n1,stopline,0.9,1,2,3,4,5,6,7,8,20,0\n' \
+  "$header" >"$work/ecu.csv"
+printf '1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 1\n' >"$work/two-poses.txt"
+check "ECU detections gated" 0 "ecu.csv: 3 detections, 2 of them refused by the ECU's observation gate" -- \
+  "$replay" --ecu-detections "$work/ecu.csv" --poses "$work/two-poses.txt"
+check "ECU detections need poses" 2 "^markloop-replay: --ecu-detections needs --poses" -- \
+  "$replay" --ecu-detections "$work/ecu.csv"
+check "markings and ECU detections" 2 "one of --markings FILE and --ecu-detections FILE is required" -- \
+  "$replay" --ecu-detections "$work/ecu.csv" --markings "$work/one.txt" --poses "$work/two-poses.txt"
+printf '1 0 0 0 0 1 0 0 0 0 1 0\n' >"$work/poses1.txt"
+check "ECU detection without a pose" 2 "ecu.csv: frame 1 has no pose \(the poses hold 1 frames\)" -- \
+  "$replay" --ecu-detections "$work/ecu.csv" --poses "$work/poses1.txt"
+printf '%s\n0,forward,0.9,1,2,3,4,5,6,7,8,nan,0\n' "$header" >"$work/ecu-nan.csv"
+check "ECU detection not a number" 2 "ecu-nan.csv:2: ground_x is not a finite number" -- \
+  "$replay" --ecu-detections "$work/ecu-nan.csv" --poses "$work/two-poses.txt"
 
 # Inputs: a directory, an endless device and poses that stop short are
 # refused by name; a record at the largest frame takes no longer than others.

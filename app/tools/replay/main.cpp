@@ -23,6 +23,7 @@
 #include "app/ecu/config.hpp"
 #include "app/tools/common/tool_files.hpp"
 #include "app/tools/replay/compat.hpp"
+#include "app/tools/replay/ecu_detections.hpp"
 #include "app/tools/replay/paper_format.hpp"
 #include "app/tools/replay/replay.hpp"
 #include "app/tools/replay/revisit_events.hpp"
@@ -35,6 +36,7 @@ using namespace markloop::replay;
 using namespace markloop::cli;
 
 constexpr const char* kUsage = R"(usage: markloop-replay --markings FILE [options]
+       markloop-replay --ecu-detections FILE --poses FILE [options]
 
 Runs the online road-marking sequence engine on recorded detections and
 prints the loops / places it found.
@@ -43,6 +45,11 @@ input:
   --markings FILE        detections, road_marking_centroids_3Dposition.txt
                          format: the record count, then "frame x y z label"
                          per record (y points down; the ground is x-z)
+  --ecu-detections FILE  or the ECU's detections (markloop --detections-out),
+                         placed on the ground with --poses and gated as the
+                         ECU gates them (observation.* defaults). With the
+                         ECU's own odometry as --poses (markloop-posegraph's
+                         before.kitti) the engine is fed what the car's was
   --poses FILE           one camera pose per frame (KITTI 3x4 [R|t]); the
                          source of travelled distance. Without it, distance
                          is measured along the markings themselves
@@ -151,7 +158,7 @@ options or input, or a database larger than the memory available.
 )";
 
 struct Options {
-  std::string markings, poses, out, jsonl, truth;
+  std::string markings, ecu_detections, poses, out, jsonl, truth;
   double fps = 10.0;
   double truth_radius = 10.0;
   bool compat = false;
@@ -163,6 +170,7 @@ struct Options {
 // The option table; kUsage above is the help text a user reads.
 constexpr OptionSpec kOptions[] = {
     {"--markings", "FILE", "detections, road_marking_centroids_3Dposition.txt format"},
+    {"--ecu-detections", "FILE", "the ECU's detections CSV, placed with --poses"},
     {"--poses", "FILE", "one camera pose per frame (KITTI 3x4 [R|t])"},
     {"--fps", "HZ", "frame rate, for time"},
     {"--k", "N", "sequence length"},
@@ -306,7 +314,8 @@ constexpr NumericOption kNumericOptions[] = {
 
 // The options that name a file, and where the name goes.
 constexpr std::pair<std::string_view, std::string Options::*> kFileOptions[] = {
-    {"--markings", &Options::markings}, {"--poses", &Options::poses}, {"--out", &Options::out},
+    {"--markings", &Options::markings}, {"--ecu-detections", &Options::ecu_detections},
+    {"--poses", &Options::poses},       {"--out", &Options::out},
     {"--jsonl", &Options::jsonl},       {"--truth", &Options::truth},
 };
 
@@ -384,7 +393,10 @@ Options parse(int argc, char** argv) {
     std::fputs(kUsage, stdout);
     std::exit(kExitOk);
   }
-  if (o.markings.empty()) fail("--markings FILE is required (see --help)");
+  if (o.markings.empty() == o.ecu_detections.empty())
+    fail("one of --markings FILE and --ecu-detections FILE is required (see --help)");
+  if (!o.ecu_detections.empty() && o.poses.empty())
+    fail("--ecu-detections needs --poses: the detections lie in the car's frame");
   // The last check, of the whole configuration (each option was checked above).
   if (const char* problem = validate(o.engine)) fail(std::string("engine settings: ") + problem);
   return o;
@@ -493,6 +505,11 @@ const MarkingRecord* last_frame_record(const std::vector<MarkingRecord>& records
   return last;
 }
 
+// The detections' file, whichever option named it.
+const std::string& input_path(const Options& o) {
+  return o.markings.empty() ? o.ecu_detections : o.markings;
+}
+
 // Poses (the odometry) and truth (the judge) are per frame: a file that
 // stops short of the markings' frames would leave frames unseen unnoticed.
 void check_covers(const std::string& path, std::size_t count, const char* what, const Options& o,
@@ -501,8 +518,9 @@ void check_covers(const std::string& path, std::size_t count, const char* what, 
   if (count == 0 && last == nullptr) fail(path + ": has no " + what + "s");
   if (last == nullptr || count > static_cast<std::size_t>(last->frame)) return;
   fail(path + ": has " + std::to_string(count) + " " + what + (count == 1 ? "" : "s") +
-       ", the markings reach frame " + std::to_string(last->frame) + " (" + o.markings + ":" +
-       std::to_string(last->line) + "; one " + what + " per frame, line i for frame i)");
+       ", the markings reach frame " + std::to_string(last->frame) + " (" + input_path(o) +
+       (last->line > 0 ? ":" + std::to_string(last->line) : std::string()) + "; one " + what +
+       " per frame, line i for frame i)");
 }
 
 // The engine takes the records in frame order: say so when the file's order
@@ -518,8 +536,10 @@ void warn_unordered(const std::string& path, const std::vector<MarkingRecord>& r
 
 // An output that is one of the inputs would destroy it: refused before the run.
 void check_outputs(const Options& o) {
-  const std::pair<const char*, const std::string*> inputs[] = {
-      {"--markings", &o.markings}, {"--poses", &o.poses}, {"--truth", &o.truth}};
+  const std::pair<const char*, const std::string*> inputs[] = {{"--markings", &o.markings},
+                                                               {"--ecu-detections", &o.ecu_detections},
+                                                               {"--poses", &o.poses},
+                                                               {"--truth", &o.truth}};
   for (const std::string* output : {&o.out, &o.jsonl})
     for (const auto& [option, input] : inputs)
       if (!output->empty() && !input->empty() && platform::overwrites(*output, *input))
@@ -554,12 +574,17 @@ T or_fail(Result<T> loaded) {
 
 void load_inputs(Replay& r) {
   const Options& o = r.o;
-  r.records = or_fail(load_markings(o.markings));
-  warn_unordered(o.markings, r.records);
-  if (!o.poses.empty()) {
-    r.poses = or_fail(load_kitti_poses(o.poses));
-    check_covers(o.poses, r.poses.size(), "pose", o, r.records);
+  if (!o.poses.empty()) r.poses = or_fail(load_kitti_poses(o.poses));
+  if (o.ecu_detections.empty()) {
+    r.records = or_fail(load_markings(o.markings));
+    warn_unordered(o.markings, r.records);
+  } else {
+    EcuDetections ecu = or_fail(load_ecu_detections(o.ecu_detections, r.poses, ecu::ObservationGate{}));
+    std::fprintf(stderr, "%s: %s: %zu detections, %zu of them refused by the ECU's observation gate\n",
+                 program_name(), o.ecu_detections.c_str(), ecu.detections, ecu.gated);
+    r.records = std::move(ecu.records);
   }
+  if (!o.poses.empty()) check_covers(o.poses, r.poses.size(), "pose", o, r.records);
   if (!o.compat) check_database_fits(o);
   if (o.truth.empty()) return;
   TruePoses truth = or_fail(load_truth(o.truth));

@@ -21,7 +21,8 @@ struct MarkingRecord {
   float y = 0.0f;
   float z = 0.0f;
   std::string label;
-  int line = 0;
+  int line = 0;         // in its file; 0: not known
+  float weight = 1.0f;  // Observation::weight
 };
 
 // Interns label names into the engine's opaque label ids.
@@ -71,7 +72,7 @@ Result<TruePoses> load_frames_csv(const std::string& path);
 
 // The paper's camera-style axes to the engine's ground frame.
 inline Observation to_ground(const MarkingRecord& r, Label label) {
-  return {label, r.z, -r.x};
+  return {label, r.z, -r.x, r.weight};
 }
 
 }  // namespace markloop::replay
