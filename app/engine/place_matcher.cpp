@@ -147,14 +147,22 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
     ++counters_.too_common;
     return false;
   }
-  const Roads on = checked ? roads(hypotheses_[best]) : Roads::One;
-  if (on == Roads::Across) {
-    ++counters_.across;
-    return false;
+  unsigned max_unseen = config_.place_pair_max_unseen;
+  if (checked && hypotheses_[best].pairs.size() == 2) {
+    const Roads on = roads(hypotheses_[best]);
+    if (on == Roads::Across) {
+      ++counters_.across;
+      return false;
+    }
+    // A car passing a marking mid-turn could have passed another of the
+    // intersection's: nothing may go unseen.
+    if (on == Roads::TurnedIn) max_unseen = 0;
+  } else if (checked) {
+    // Three pairs fix the alignment wherever the cars drove (both may have
+    // turned at the intersection), but their labels say little: nothing may
+    // go unseen.
+    max_unseen = 0;
   }
-  // A car passing a marking mid-turn could have passed another of the
-  // intersection's: nothing may go unseen.
-  const unsigned max_unseen = on == Roads::TurnedIn ? 0u : config_.place_pair_max_unseen;
   if (checked && unseen(database, hypotheses_[best]) > max_unseen) {
     ++counters_.unseen;
     return false;

@@ -201,6 +201,25 @@ TEST_CASE("a place of three with common labels is judged as a place of two", "[e
   }
 }
 
+TEST_CASE("a place of three with common labels closes a loop where the cars crossed a pair",
+          "[engine][place]") {
+  // Two markings on an east-west street and one at the corner of a side
+  // street. The first visit drives east and turns south past the corner
+  // marking; the second drives the street west, passing it across.
+  const std::vector<Mark> world = {{100, -1, 14}, {106, -1, 15}, {113, -5, 1}};
+  EngineConfig config = place_config(3);
+  config.match.place_min_bits = 100.0;
+  config.match.place_pair_min_bits = 1.0;
+  SequenceEngine engine(config);
+  Car car(engine, world);
+  car.drive({{0, 0}, {116, 0}, {116, -150}, {300, -150}, {300, -1}, {-40, -1}});
+  engine.flush(car.sink);
+  CHECK(judge(car, car.sink.events).wrong == 0);
+  REQUIRE(car.sink.events.size() >= 1);
+  CHECK(car.sink.events[0].k == 3);
+  CHECK(engine.place_counters().across >= 1);  // the corner and one marking: two pairs are not enough
+}
+
 TEST_CASE("a place of two is no loop where a stored marking went unseen on the way in", "[engine][place]") {
   // Three markings; the third from the west (first passed) is gone when the
   // car comes back: what is left is a place of two, and the car looked
