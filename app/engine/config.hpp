@@ -115,8 +115,9 @@ struct MatchConfig {
   // rival of two pairs or more fits, and no more than place_pair_max_unseen
   // stored landmarks lay, aligned, where the car looked on its way in
   // without anything of their label seen there. A place of more pairs whose
-  // labels give fewer than place_min_bits is judged so too (0: a place
-  // needs place_landmarks pairs and place_min_bits).
+  // labels give fewer than place_min_bits needs these bits too, and no
+  // stored landmark unseen (0: a place needs place_landmarks pairs and
+  // place_min_bits).
   double place_pair_min_bits = 0.0;
   unsigned place_pair_max_unseen = 0;
   // Where the car surely sees a marking (the observations' ground area,

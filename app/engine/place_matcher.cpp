@@ -147,26 +147,7 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
     ++counters_.too_common;
     return false;
   }
-  unsigned max_unseen = config_.place_pair_max_unseen;
-  if (checked && hypotheses_[best].pairs.size() == 2) {
-    const Roads on = roads(hypotheses_[best]);
-    if (on == Roads::Across) {
-      ++counters_.across;
-      return false;
-    }
-    // A car passing a marking mid-turn could have passed another of the
-    // intersection's: nothing may go unseen.
-    if (on == Roads::TurnedIn) max_unseen = 0;
-  } else if (checked) {
-    // Three pairs fix the alignment wherever the cars drove (both may have
-    // turned at the intersection), but their labels say little: nothing may
-    // go unseen.
-    max_unseen = 0;
-  }
-  if (checked && unseen(database, hypotheses_[best]) > max_unseen) {
-    ++counters_.unseen;
-    return false;
-  }
+  if (checked && !passes_checks(database, hypotheses_[best])) return false;
   // ...with no plausible rival: another visit of the same place agrees. A
   // checked place has rivals of two pairs too.
   for (std::size_t i = 0; i < found; ++i) {
@@ -178,6 +159,30 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
   }
   ++counters_.matches;
   fill(hypotheses_[best], static_cast<unsigned>(found), event);
+  return true;
+}
+
+bool PlaceMatcher::passes_checks(const SequenceDatabase& database, const Hypothesis& h) {
+  unsigned max_unseen = config_.place_pair_max_unseen;
+  if (h.pairs.size() == 2) {
+    const Roads on = roads(h);
+    if (on == Roads::Across) {
+      ++counters_.across;
+      return false;
+    }
+    // A car passing a marking mid-turn could have passed another of the
+    // intersection's: nothing may go unseen.
+    if (on == Roads::TurnedIn) max_unseen = 0;
+  } else {
+    // Three pairs fix the alignment wherever the cars drove (both may have
+    // turned at the intersection), but their labels say little: nothing may
+    // go unseen.
+    max_unseen = 0;
+  }
+  if (unseen(database, h) > max_unseen) {
+    ++counters_.unseen;
+    return false;
+  }
   return true;
 }
 

@@ -14,11 +14,11 @@
 //        car at (a few times the drift limits, within `place_distinct_m`)
 //        fits as well: a constellation repeated nearby (the same
 //        intersection layout a block away) is never a place.
-//     -> a place of two pairs (`place_pair_min_bits`), or of more whose
-//        labels are too common for `place_min_bits`, also needs the cars
+//     -> a place of two pairs (`place_pair_min_bits`) also needs the cars
 //        driving one road at both, and every stored landmark it puts where
 //        the car surely looked on its way in seen there again
-//        (`place_pair_max_unseen`).
+//        (`place_pair_max_unseen`); one of more pairs whose labels are too
+//        common for `place_min_bits`, every such landmark seen again.
 #pragma once
 
 #include <array>
@@ -114,6 +114,9 @@ class PlaceMatcher {
   void fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const;
   // Sum over the pairs of -log2 of their label's share of the landmarks seen.
   double evidence_bits(const Hypothesis& h) const;
+  // The checks a place of two, or one of common labels, must pass besides
+  // its bits and its rivals; a refusal is counted.
+  bool passes_checks(const SequenceDatabase& database, const Hypothesis& h);
   // Whether at each pair the two cars' headings, aligned, were nearly the
   // same or opposite where they passed it (One), at some pair only a little
   // later (TurnedIn: the car turned into the road there), or not (Across).
