@@ -583,6 +583,12 @@ replay_cases() {
     C name="replay.sweep=$v" prog=replay expect=reject mention=--sweep cmd="\$REPLAY --markings $mk --sweep $v"
   done
 
+  # The ECU's detections CSV, placed with the drive's poses.
+  local ed='$F/drive/ecu-detections.csv'
+  C name=replay.control.ecu-detections prog=replay expect=ok phrase='matches' cmd="\$REPLAY --ecu-detections $ed --poses $ps"
+  C name=replay.opt.ecu-detections-no-poses prog=replay expect=reject mention=--poses cmd="\$REPLAY --ecu-detections $ed"
+  badfiles replay.ecu-detections replay "\$REPLAY --ecu-detections @ --poses $ps" "$ed" reject 'matches'
+  bitflips replay.ecu-detections replay "\$REPLAY --ecu-detections @ --poses $ps" "$ed" 3 3
   badfiles replay.markings replay '$REPLAY --markings @' "$mk" reject 'matches' all
   badfiles replay.poses replay "\$REPLAY --markings $mk --poses @" "$ps" reject 'matches'
   badfiles replay.truth replay "\$REPLAY --markings $mk --truth @" '$F/drive/frames.csv' reject 'matches'
