@@ -358,7 +358,7 @@ unsigned PlaceMatcher::unseen(const SequenceDatabase& database, const Hypothesis
     if (label_counts_[bucket] == 0) continue;
     database.for_each_landmark_near(
         static_cast<Label>(bucket), centre.x(), centre.y(), reach, kPerCell, [&](const Landmark& stored) {
-          if (!old_enough(stored, newest) || !on_fitted_visit(stored, h) || piece_of_pair(stored, h)) return;
+          if (!old_enough(stored, newest) || piece_of_pair(stored, h) || copy_of_pair(stored, h)) return;
           const Eigen::Vector2d p = moved(h.fit.transform, point(stored));
           const double passed_yaw = stored.car_yaw + h.fit.transform.yaw;
           if (looked_at(p, passed_yaw) && !seen_recently(stored.label, p)) ++count;
@@ -383,9 +383,13 @@ bool PlaceMatcher::piece_of_pair(const Landmark& stored, const Hypothesis& h) {
   return false;
 }
 
-bool PlaceMatcher::on_fitted_visit(const Landmark& stored, const Hypothesis& h) const {
-  for (const Pair& pair : h.pairs)
-    if (std::abs(stored.station - pair.stored->station) <= config_.place_window_m) return true;
+bool PlaceMatcher::copy_of_pair(const Landmark& stored, const Hypothesis& h) const {
+  for (const Pair& pair : h.pairs) {
+    const double driven_between = std::abs(stored.station - pair.stored->station);
+    if (stored.label == pair.stored->label && driven_between > config_.place_window_m &&
+        (point(stored) - point(*pair.stored)).norm() <= drift_allowed_m(config_, driven_between))
+      return true;
+  }
   return false;
 }
 

@@ -140,10 +140,11 @@ class PlaceMatcher {
   void recent_path_bounds(Eigen::Vector2d& low, Eigen::Vector2d& high) const;
   // Whether `stored` is (a piece of) one of `h`'s paired markings.
   static bool piece_of_pair(const Landmark& stored, const Hypothesis& h);
-  // Whether `stored` was passed on the visit `h` aligns: within a place
-  // window of driving of one of its stored pairs. Another visit's copy of a
-  // marking lies where that visit's drift put it.
-  bool on_fitted_visit(const Landmark& stored, const Hypothesis& h) const;
+  // Whether `stored` is another visit's landmark of one of `h`'s paired
+  // markings: of its label, as far from it as the odometry can drift
+  // between the visits. Aligned onto the visit `h` fits, it lies where that
+  // visit's drift put it, not where the marking is.
+  bool copy_of_pair(const Landmark& stored, const Hypothesis& h) const;
 
   MatchConfig config_;
   FixedVector<Landmark, kMaxRecent> recent_;        // oldest first; the newest last
