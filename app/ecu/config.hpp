@@ -77,8 +77,8 @@ inline EngineConfig ecu_engine_defaults() {
   c.match.place_within_m = 2000.0;
   c.match.place_min_bits = 6.0;
   c.match.place_pair_min_bits = 4.0;
-  c.match.place_pair_max_unseen = 1;
-  c.match.place_max_residual_m = 0.2;
+  c.match.place_pair_max_unseen = 0;
+  c.match.place_max_residual_m = 0.14;
   return c;
 }
 

@@ -46,6 +46,10 @@ constexpr double kSeenWithin_m = 1.5;
 // cross street, one intersection's markings are seen from elsewhere). A
 // stored marking is looked for only from along the road it was passed on.
 constexpr double kAlongRoad_deg = 30.0;
+// A place of two, or of common labels, fits this well (RMS): two pairs fit
+// any two markings whose distances agree, and a look-alike rarely to within
+// a decimetre.
+constexpr double kCheckedMaxResidual_m = 0.1;
 // A car turning into the road passes its first markings mid-turn: its
 // heading this far past them shows the road it turned into.
 constexpr double kTurnedIn_m = 10.0;
@@ -163,6 +167,10 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
 }
 
 bool PlaceMatcher::passes_checks(const SequenceDatabase& database, const Hypothesis& h) {
+  if (h.fit.rms_residual > kCheckedMaxResidual_m) {
+    ++counters_.rejected_residual;
+    return false;
+  }
   unsigned max_unseen = config_.place_pair_max_unseen;
   if (h.pairs.size() == 2) {
     const Roads on = roads(h);
