@@ -111,13 +111,13 @@ struct MatchConfig {
   // of each label's share of the landmarks seen so far (0: any labels).
   double place_min_bits = 0.0;
   // A place of two pairs, fewer than place_landmarks, counts when its labels
-  // give at least this many bits, the cars drove one road at both pairs, no
-  // rival of two pairs or more fits, and no more than place_pair_max_unseen
-  // stored landmarks lay, aligned, where the car looked on its way in
-  // without anything of their label seen there. A place of more pairs whose
-  // labels give fewer than place_min_bits needs these bits too, and no
-  // stored landmark unseen (0: a place needs place_landmarks pairs and
-  // place_min_bits).
+  // give at least this many bits, it fits within 0.1 m, the cars drove one
+  // road at both pairs, no rival of two pairs or more fits, and no more than
+  // place_pair_max_unseen stored landmarks lay, aligned, where the car
+  // looked on its way in without anything of their label seen there. A
+  // place of more pairs whose labels give fewer than place_min_bits needs
+  // these bits and fit too, and no stored landmark unseen (0: a place needs
+  // place_landmarks pairs and place_min_bits).
   double place_pair_min_bits = 0.0;
   unsigned place_pair_max_unseen = 0;
   // Where the car surely sees a marking (the observations' ground area,
