@@ -472,12 +472,10 @@ constexpr Setting kSettings[] = {
      .section = S::kEngine,
      .description = "a place of two markings (fewer than engine.place_landmarks) closes a loop when "
                     "their labels give this many bits, they fit within 0.1 m, the cars drove one road at "
-                    "both, and no stored "
-                    "marking lies, aligned, where the car surely looked on its way in with nothing of "
-                    "its label seen there (engine.place_pair_max_unseen); a larger place whose labels "
-                    "give less than engine.place_min_bits needs these bits and no such marking; 0: a "
-                    "place needs "
-                    "engine.place_landmarks and engine.place_min_bits"},
+                    "both, and no stored marking lies, aligned, where the car surely looked on its way "
+                    "in with nothing of its label seen there (engine.place_pair_max_unseen); a larger "
+                    "place whose labels give less than engine.place_min_bits needs these bits and no "
+                    "such marking; 0: a place needs engine.place_landmarks and engine.place_min_bits"},
     {.key = "engine.place_pair_max_unseen",
      .kind = K::kInteger,
      .member = member([](auto& c) -> auto& { return c.engine.match.place_pair_max_unseen; }),
