@@ -369,7 +369,9 @@ unsigned PlaceMatcher::unseen(const SequenceDatabase& database, const Hypothesis
           if (!old_enough(stored, newest) || piece_of_pair(stored, h) || copy_of_pair(stored, h)) return;
           const Eigen::Vector2d p = moved(h.fit.transform, point(stored));
           const double passed_yaw = stored.car_yaw + h.fit.transform.yaw;
-          if (looked_at(p, passed_yaw) && !seen_recently(stored.label, p)) ++count;
+          if (view_of(p, passed_yaw) == View::kPassed && !seen_recently(stored.label, p) &&
+              !copy_on_fitted_visit(database, stored, h))
+            ++count;
         });
   }
   return count;
@@ -401,7 +403,28 @@ bool PlaceMatcher::copy_of_pair(const Landmark& stored, const Hypothesis& h) con
   return false;
 }
 
-bool PlaceMatcher::looked_at(const Eigen::Vector2d& p, double passed_yaw) const {
+bool PlaceMatcher::copy_on_fitted_visit(const SequenceDatabase& database, const Landmark& stored,
+                                        const Hypothesis& h) const {
+  const auto on_fitted_visit = [&](const Landmark& l) {
+    for (const Pair& pair : h.pairs)
+      if (std::abs(l.station - pair.stored->station) <= config_.place_window_m) return true;
+    return false;
+  };
+  if (on_fitted_visit(stored)) return false;
+  const double driven_between = std::abs(stored.station - h.pairs[0].stored->station);
+  const double reach = std::min(config_.place_search_m, drift_allowed_m(config_, driven_between));
+  bool found = false;
+  database.for_each_landmark_near(
+      stored.label, stored.x, stored.y, reach, kPerCell, [&](const Landmark& copy) {
+        if (found || !on_fitted_visit(copy)) return;
+        const Eigen::Vector2d p = moved(h.fit.transform, point(copy));
+        found =
+            seen_recently(copy.label, p) || view_of(p, copy.car_yaw + h.fit.transform.yaw) == View::kComing;
+      });
+  return found;
+}
+
+PlaceMatcher::View PlaceMatcher::view_of(const Eigen::Vector2d& p, double passed_yaw) const {
   const double now = path_at(0).odometer;
   const double window_start = now - config_.place_window_m;
   bool in_view = false;
@@ -419,7 +442,9 @@ bool PlaceMatcher::looked_at(const Eigen::Vector2d& p, double passed_yaw) const 
     in_view = true;
     first = at.odometer;
   }
-  return in_view && last - first >= kLookedAt_m && now - last >= config_.place_view_near_m + kReleasedPast_m;
+  if (!in_view) return View::kOutside;
+  if (now - last < config_.place_view_near_m + kReleasedPast_m) return View::kComing;
+  return last - first >= kLookedAt_m ? View::kPassed : View::kOutside;
 }
 
 bool PlaceMatcher::seen_recently(Label label, const Eigen::Vector2d& p) const {

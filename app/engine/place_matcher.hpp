@@ -130,11 +130,13 @@ class PlaceMatcher {
   // a marking on its recent path, since left behind, with no recent
   // landmark of their label there.
   unsigned unseen(const SequenceDatabase& database, const Hypothesis& h) const;
-  // Whether the car, on its recent path, had `p` in view over a few metres,
-  // driving along the road it was passed on with heading `passed_yaw` (seen
-  // from the side, a marking is not surely detected), and has driven far
-  // enough since for a marking there to be released.
-  bool looked_at(const Eigen::Vector2d& p, double passed_yaw) const;
+  // Where `p` stands in the car's view on its recent path, driving along the
+  // road it was passed on with heading `passed_yaw` (seen from the side, a
+  // marking is not surely detected). kPassed: in view over a few metres, and
+  // driven far enough since for a marking there to be released; kComing: in
+  // view, not yet released.
+  enum class View { kOutside, kComing, kPassed };
+  View view_of(const Eigen::Vector2d& p, double passed_yaw) const;
   bool seen_recently(Label label, const Eigen::Vector2d& p) const;
   // The box around the car's path within the place window.
   void recent_path_bounds(Eigen::Vector2d& low, Eigen::Vector2d& high) const;
@@ -145,6 +147,12 @@ class PlaceMatcher {
   // between the visits. Aligned onto the visit `h` fits, it lies where that
   // visit's drift put it, not where the marking is.
   bool copy_of_pair(const Landmark& stored, const Hypothesis& h) const;
+  // Whether `stored`, of another visit than the one `h` fits, has a copy on
+  // that visit (its label, within the drift limits) that `h` puts where the
+  // car saw a marking of its label or has not yet released one: the same
+  // marking, placed by the other visit's drift. The copy is judged instead.
+  bool copy_on_fitted_visit(const SequenceDatabase& database, const Landmark& stored,
+                            const Hypothesis& h) const;
 
   MatchConfig config_;
   FixedVector<Landmark, kMaxRecent> recent_;        // oldest first; the newest last

@@ -272,6 +272,33 @@ TEST_CASE("another visit's copy of a paired marking, drifted along the road, is 
   CHECK(engine.place_counters().unseen == 0);
 }
 
+TEST_CASE("another visit's copy of a marking not paired is judged by the fitted visit's own copy",
+          "[engine][place]") {
+  // Two markings, and a third 2 m past the second, on a street driven north
+  // three times; from the second visit on, the odometry places everything
+  // 6 m further north. When the third visit's second marking is released, the
+  // first visit's copy of the third marking, aligned onto the second visit,
+  // lies 6 m behind it: passed, with nothing there. The second visit's own
+  // copy lies ahead, not yet released, and is the one to judge.
+  const std::vector<Mark> world = {{1, 100, 14}, {1, 106, 15}, {1, 108, 3}};
+  EngineConfig config = place_config(3);
+  config.match.place_pair_min_bits = 1.0;
+  config.match.place_pair_max_unseen = 0;
+  SequenceEngine engine(config);
+  Car car(engine, world);
+  const std::vector<Point> block = {{0, 0}, {0, 200}, {-150, 200}, {-150, -50}, {0, -50}, {0, 0}};
+  car.drive(block);
+  car.drift = 6.0;
+  car.drive(block);
+  const std::size_t third_visit = car.sink.events.size();
+  car.drive({{0, 0}, {0, 200}});
+  engine.flush(car.sink);
+  CHECK(judge(car, car.sink.events).wrong == 0);
+  REQUIRE(car.sink.events.size() > third_visit);
+  CHECK(car.sink.events[third_visit].k == 2);
+  CHECK(engine.place_counters().unseen == 0);
+}
+
 TEST_CASE("a street driven back the other way is the same place", "[engine][place]") {
   const std::vector<Mark> world = town();
   SequenceEngine engine(place_config(3));
