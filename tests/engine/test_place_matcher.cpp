@@ -105,6 +105,28 @@ Outcome judge(const Car& car, const std::vector<MatchEvent>& events) {
   return o;
 }
 
+// Places of two with any labels, and no stored marking left unseen.
+EngineConfig places_of_two_config() {
+  EngineConfig config = place_config(3);
+  config.match.place_pair_min_bits = 1.0;
+  config.match.place_pair_max_unseen = 0;
+  return config;
+}
+
+// Drives north on x = 0 three times around a block; from the second visit on
+// the odometry places everything 6 m further north. Returns the number of
+// matches before the third visit.
+std::size_t drive_north_three_times(SequenceEngine& engine, Car& car) {
+  const std::vector<Point> block = {{0, 0}, {0, 200}, {-150, 200}, {-150, -50}, {0, -50}, {0, 0}};
+  car.drive(block);
+  car.drift = 6.0;
+  car.drive(block);
+  const std::size_t before_third = car.sink.events.size();
+  car.drive({{0, 0}, {0, 200}});
+  engine.flush(car.sink);
+  return before_third;
+}
+
 }  // namespace
 
 TEST_CASE("a turn into an old street closes a loop after a few markings", "[engine][place]") {
@@ -254,21 +276,13 @@ TEST_CASE("another visit's copy of a paired marking, drifted along the road, is 
   // second visit, the first visit's copies of the two markings lie 6 m behind
   // the landmarks, where the car looked and saw none.
   const std::vector<Mark> world = {{1, 100, 14}, {1, 106, 15}};
-  EngineConfig config = place_config(3);
-  config.match.place_pair_min_bits = 1.0;
-  config.match.place_pair_max_unseen = 0;
-  SequenceEngine engine(config);
+  SequenceEngine engine(places_of_two_config());
   Car car(engine, world);
-  const std::vector<Point> block = {{0, 0}, {0, 200}, {-150, 200}, {-150, -50}, {0, -50}, {0, 0}};
-  car.drive(block);
-  car.drift = 6.0;
-  car.drive(block);
-  car.drive({{0, 0}, {0, 200}});
-  engine.flush(car.sink);
+  const std::size_t third_visit = drive_north_three_times(engine, car);
   CHECK(judge(car, car.sink.events).wrong == 0);
   // One loop for each revisit.
   REQUIRE(car.sink.events.size() == 2);
-  CHECK(car.sink.events[1].k == 2);
+  CHECK(car.sink.events[third_visit].k == 2);
   CHECK(engine.place_counters().unseen == 0);
 }
 
@@ -281,18 +295,9 @@ TEST_CASE("another visit's copy of a marking not paired is judged by the fitted 
   // lies 6 m behind it: passed, with nothing there. The second visit's own
   // copy lies ahead, not yet released, and is the one to judge.
   const std::vector<Mark> world = {{1, 100, 14}, {1, 106, 15}, {1, 108, 3}};
-  EngineConfig config = place_config(3);
-  config.match.place_pair_min_bits = 1.0;
-  config.match.place_pair_max_unseen = 0;
-  SequenceEngine engine(config);
+  SequenceEngine engine(places_of_two_config());
   Car car(engine, world);
-  const std::vector<Point> block = {{0, 0}, {0, 200}, {-150, 200}, {-150, -50}, {0, -50}, {0, 0}};
-  car.drive(block);
-  car.drift = 6.0;
-  car.drive(block);
-  const std::size_t third_visit = car.sink.events.size();
-  car.drive({{0, 0}, {0, 200}});
-  engine.flush(car.sink);
+  const std::size_t third_visit = drive_north_three_times(engine, car);
   CHECK(judge(car, car.sink.events).wrong == 0);
   REQUIRE(car.sink.events.size() > third_visit);
   CHECK(car.sink.events[third_visit].k == 2);
