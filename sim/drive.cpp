@@ -1,7 +1,5 @@
 #include "sim/drive.hpp"
 
-#include <string_view>
-
 #include "app/common/units.hpp"
 #include "app/perception/marking_classes.hpp"
 
@@ -9,15 +7,6 @@
 #include <numbers>
 
 namespace markloop::sim {
-namespace {
-
-bool looks_alike_turned(Label label) {
-  const std::string_view name = perception::marking_class_name(label);
-  return name == "stopline" || name == "crosswalk" || name == "diamond";
-}
-
-}  // namespace
-
 namespace {
 // A wrong label is one of the symbol classes (arrows, words, numbers, bike,
 // diamond: the first 14); stop lines and crosswalks are not mistaken for them.
@@ -78,7 +67,9 @@ bool Drive::next(DriveFrame& out) {
     const Pose2 seen =
         compose(estimate_, Pose2{ahead + sigma * gauss(rng_), left + sigma * gauss(rng_), 0.0});
     if (unit(rng_) < config_.label_error_probability) label = static_cast<Label>(rng_() % kConfusableClasses);
-    out.observations.push_back({label, static_cast<float>(seen.x), static_cast<float>(seen.y)});
+    // Read as painted (markings painted for the other lane are skipped).
+    out.observations.push_back({label, static_cast<float>(seen.x), static_cast<float>(seen.y), 1.0f,
+                                perception::facing_of(label, false)});
     out.observed_marking_ids.push_back(id);
   };
 
@@ -98,7 +89,7 @@ bool Drive::next(DriveFrame& out) {
         // Markings facing the other way are painted for the opposite lane:
         // upside down, only the shapes that a half turn leaves alike are
         // recognised (a stop line, a crosswalk, a diamond).
-        if (std::cos(wrap_angle(m.heading - truth.yaw)) < 0.5 && !looks_alike_turned(m.label)) continue;
+        if (std::cos(wrap_angle(m.heading - truth.yaw)) < 0.5 && !perception::same_when_turned(m.label)) continue;
         if (unit(rng_) >= config_.detection_probability) continue;
         observe(rel.x, rel.y, m.label, m.id);
       }

@@ -158,7 +158,7 @@ void Ecu::process(std::span<const perception::Detection> detections, Nanoseconds
       Observation o;
       const Observed observed =
           d.label < perception::kMarkingClassCount
-              ? observe(d.label, d.score, d.ground_x, d.ground_y, input.pose, config_.gate, o)
+              ? observe(d.label, d.score, d.turned, d.ground_x, d.ground_y, input.pose, config_.gate, o)
               : Observed::kRejected;
       if (observed == Observed::kGated)
         ++counters_.detections_gated;

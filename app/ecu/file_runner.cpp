@@ -47,18 +47,18 @@ class DetectionsCsv {
       return error(path + ": cannot write: " + std::strerror(reason));
     }
     std::setvbuf(file_, buffer_.data(), _IOFBF, buffer_.size());  // no heap for stdio
-    std::fputs("frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y\n", file_);
+    std::fputs("frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y,turned\n", file_);
     return {};
   }
   void write(std::uint64_t frame, std::span<const perception::Detection> detections) {
     if (file_ == nullptr) return;
     for (const perception::Detection& d : detections) {
       const std::string_view name = perception::marking_class_name(d.label);
-      std::fprintf(file_, "%llu,%.*s,%.3f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.3f,%.3f\n",
+      std::fprintf(file_, "%llu,%.*s,%.3f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.3f,%.3f,%d\n",
                    static_cast<unsigned long long>(frame), static_cast<int>(name.size()), name.data(),
                    double(d.score), double(d.quad[0][0]), double(d.quad[0][1]), double(d.quad[1][0]),
                    double(d.quad[1][1]), double(d.quad[2][0]), double(d.quad[2][1]), double(d.quad[3][0]),
-                   double(d.quad[3][1]), double(d.ground_x), double(d.ground_y));
+                   double(d.quad[3][1]), double(d.ground_x), double(d.ground_y), d.turned ? 1 : 0);
     }
   }
   // "PATH: write error" when a write or the close failed.

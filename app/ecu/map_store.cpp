@@ -69,7 +69,8 @@ void encode_landmark(const Landmark& l, std::uint8_t* p) {
   putf(p + 24, l.car_y);
   putf(p + 28, l.car_yaw);
   p[32] = l.has_car_pose ? 1 : 0;
-  p[33] = p[34] = p[35] = 0;
+  p[33] = static_cast<std::uint8_t>(l.facing);
+  p[34] = p[35] = 0;
   putd(p + 36, l.t);
   putd(p + 44, l.station);
 }
@@ -85,8 +86,9 @@ bool decode_landmark(const std::uint8_t* p, Landmark& l) {
   l.car_x = getf(p + 20);
   l.car_y = getf(p + 24);
   l.car_yaw = getf(p + 28);
-  if (p[32] > 1 || p[33] != 0 || p[34] != 0 || p[35] != 0) return false;
+  if (p[32] > 1 || p[33] > static_cast<std::uint8_t>(Facing::kAgainst) || p[34] != 0 || p[35] != 0) return false;
   l.has_car_pose = p[32] == 1;
+  l.facing = static_cast<Facing>(p[33]);
   l.t = getd(p + 36);
   l.station = getd(p + 44);
   const float coordinates[] = {l.x, l.y, l.car_x, l.car_y, l.car_yaw};

@@ -9,7 +9,9 @@
 //     60 u32 CRC-32 of bytes 0..59
 //   payload: the landmarks oldest first (52 bytes each: label u16,
 //     observations u16, first_frame u32, last_frame u32, x, y, car_x, car_y,
-//     car_yaw f32, has_car_pose u8 + 3 zero bytes, t f64, station f64), then
+//     car_yaw f32, has_car_pose u8, facing u8 (0 any, 1 along, 2 against
+//     car_yaw; 0 in maps written before it was kept) + 2 zero bytes, t f64,
+//     station f64), then
 //     the sequences oldest first (k u32 each: landmark index into the above).
 //
 // The map is the user's data: nothing here ever damages it.

@@ -51,17 +51,21 @@ void LandmarkTracker::observe(const FrameInput& frame, double odometer,
     track.updated = true;
     if (frame.has_pose) add_drift(track, frame, obs);
 
-    bool voted = false;
-    for (Vote& vote : track.votes) {
-      if (vote.label == obs.label) {
-        ++vote.count;
-        voted = true;
-        break;
-      }
-    }
+    Vote* vote = nullptr;
+    for (Vote& v : track.votes)
+      if (v.label == obs.label) vote = &v;
     // More distinct labels than vote slots: the extras cannot win anyway.
-    if (!voted) track.votes.push_back(Vote{obs.label, 1});
+    if (vote == nullptr && track.votes.push_back(Vote{obs.label, 0})) vote = &track.votes.back();
+    if (vote == nullptr) continue;
+    ++vote->count;
+    if (obs.facing == Facing::kAlong) ++vote->along;
+    if (obs.facing == Facing::kAgainst) ++vote->against;
   }
+}
+
+Facing LandmarkTracker::facing_of(const Vote& winner) {
+  if (winner.along == winner.against) return Facing::kAny;
+  return winner.along > winner.against ? Facing::kAlong : Facing::kAgainst;
 }
 
 void LandmarkTracker::add_drift(Track& track, const FrameInput& frame, const Observation& obs) {
@@ -112,6 +116,7 @@ bool LandmarkTracker::to_landmark(const Track& track, Landmark& out) {
   out.y = static_cast<float>(track.sum_y / track.sum_weight);
   out.t = track.t_last;
   out.has_car_pose = track.has_pose;
+  out.facing = facing_of(*winner);
   if (track.has_pose) {
     out.car_x = static_cast<float>(track.car.x);
     out.car_y = static_cast<float>(track.car.y);

@@ -59,6 +59,8 @@ class LandmarkTracker {
   struct Vote {
     Label label;
     std::uint16_t count;
+    std::uint16_t along = 0;  // of them, read with a facing (Observation::facing)
+    std::uint16_t against = 0;
   };
   struct Track {
     double sum_x = 0.0;  // weighted sums of the observed positions
@@ -84,6 +86,8 @@ class LandmarkTracker {
   static double station(const Track& track, double x, double y);
 
   bool to_landmark(const Track& track, Landmark& out);
+  // The facing most of the winning label's readings gave; none on a tie.
+  static Facing facing_of(const Vote& winner);
 
   TrackerConfig config_;
   FixedVector<Track, kMaxTracks> tracks_;

@@ -58,6 +58,15 @@ Eigen::Vector2d point(const Landmark& l) {
   return {l.x, l.y};
 }
 
+// Whether two landmarks of one label could be one marking by the way it is
+// painted: markings facing opposite ways on the ground are two (cars on
+// parallel streets each read their own lane's arrow or bike). A place turns
+// one visit by no more than the drift limits, far less than a quarter turn.
+bool facings_agree(const Landmark& a, const Landmark& b) {
+  const std::optional<double> yaw_a = facing_yaw(a), yaw_b = facing_yaw(b);
+  return !yaw_a || !yaw_b || std::cos(*yaw_a - *yaw_b) > 0.0;
+}
+
 // `p` moved by the rigid transform `t`.
 Eigen::Vector2d moved(const Pose2& t, const Eigen::Vector2d& p) {
   const Pose2 q = compose(t, {p.x(), p.y(), 0.0});
@@ -114,7 +123,7 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
   database.for_each_landmark_near(newest.label, newest.x, newest.y,
                                   std::max(config_.place_distinct_m, config_.place_search_m), kPerCell,
                                   [&](const Landmark& anchor) {
-                                    if (!old_enough(anchor, newest)) return;
+                                    if (!old_enough(anchor, newest) || !facings_agree(anchor, newest)) return;
                                     ++counters_.hypotheses;
                                     if (found == kMaxHypotheses) {
                                       overflow = true;
@@ -250,7 +259,7 @@ const Landmark* PlaceMatcher::partner(const SequenceDatabase& database, const La
   const Landmark* best = nullptr;
   double best_sq = 0.0;
   database.for_each_landmark_near(query.label, at.x(), at.y(), tolerance, kPerCell, [&](const Landmark& s) {
-    if (!old_enough(s, query)) return;
+    if (!old_enough(s, query) || !facings_agree(s, query)) return;
     for (const Pair& p : h.pairs)
       if (p.stored->id == s.id) return;
     const double d_sq = (point(s) - at).squaredNorm();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <optional>
 
 #include <Eigen/Core>
@@ -158,6 +159,11 @@ bool SequenceEngine::represent_by_passing_frame(Landmark& landmark) {
   const PassingFrame& passing = history_at(best);
   landmark.last_frame = std::max(landmark.first_frame, passing.frame);
   landmark.t = passing.t;
+  // The facing was read against the car's heading where it last saw the
+  // marking; it turns with the heading it is now read against.
+  if (landmark.facing != Facing::kAny &&
+      std::abs(wrap_angle(passing.pose.yaw - landmark.car_yaw)) > 0.5 * std::numbers::pi)
+    landmark.facing = landmark.facing == Facing::kAlong ? Facing::kAgainst : Facing::kAlong;
   landmark.car_x = static_cast<float>(passing.pose.x);
   landmark.car_y = static_cast<float>(passing.pose.y);
   landmark.car_yaw = static_cast<float>(passing.pose.yaw);

@@ -28,4 +28,10 @@ std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& q
   return compose(inverse(compose(alignment, match_car)), query_car);
 }
 
+std::optional<double> facing_yaw(const Landmark& landmark) {
+  if (landmark.facing == Facing::kAny || !landmark.has_car_pose) return std::nullopt;
+  return landmark.facing == Facing::kAlong ? double(landmark.car_yaw)
+                                           : wrap_angle(double(landmark.car_yaw) + std::numbers::pi);
+}
+
 }  // namespace markloop

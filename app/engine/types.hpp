@@ -30,6 +30,14 @@ Pose2 compose(const Pose2& a, const Pose2& b);
 Pose2 inverse(const Pose2& p);
 double wrap_angle(double radians);
 
+// Which way a marking is painted, as the camera read it: for the car's
+// direction of travel (kAlong) or for the opposite one (kAgainst, read
+// upside down). A marking that a half turn leaves alike (a crosswalk, a stop
+// line) has no facing (kAny). Two landmarks facing opposite ways on the
+// ground are two markings, whatever their labels.
+// The values are stored in map files.
+enum class Facing : std::uint8_t { kAny = 0, kAlong = 1, kAgainst = 2 };
+
 // One detected marking in one frame, already placed on the ground.
 struct Observation {
   Label label = 0;
@@ -38,6 +46,7 @@ struct Observation {
   // Relative precision of the position (inverse variance, any scale, > 0):
   // a camera places near markings better than far ones.
   float weight = 1.0f;
+  Facing facing = Facing::kAny;  // against the car's heading in this frame
 };
 
 struct FrameInput {
@@ -63,6 +72,7 @@ struct Landmark {
   float car_y = 0.0f;
   float car_yaw = 0.0f;
   bool has_car_pose = false;
+  Facing facing = Facing::kAny;  // against car_yaw
   double t = 0.0;        // time of last_frame, seconds
   double station = 0.0;  // distance travelled along the drive, metres
 };
@@ -71,5 +81,9 @@ struct Landmark {
 // closest to their landmark, once `alignment` maps the match's world frame
 // onto the query's; none when either car's pose is unknown.
 std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& query, const Landmark& match);
+
+// The direction on the ground a landmark's marking is painted for, in its
+// world frame; none when it has no facing or no car pose.
+std::optional<double> facing_yaw(const Landmark& landmark);
 
 }  // namespace markloop

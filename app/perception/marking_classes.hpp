@@ -47,6 +47,13 @@ constexpr bool same_when_turned(Label label) {
   return name == "diamond" || name == "stopline" || name == "crosswalk";
 }
 
+// Which way a marking faces the car that read it: read `turned` half way
+// round, it is painted for the opposite direction.
+constexpr Facing facing_of(Label label, bool turned) {
+  if (same_when_turned(label)) return Facing::kAny;
+  return turned ? Facing::kAgainst : Facing::kAlong;
+}
+
 constexpr std::optional<Label> marking_class_from_name(std::string_view name) {
   for (std::size_t i = 0; i < kMarkingClassCount; ++i)
     if (kMarkingClassNames[i] == name) return static_cast<Label>(i);

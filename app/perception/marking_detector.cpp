@@ -240,6 +240,7 @@ void MarkingDetector::report(bool still, bool any_joined) {
     d.label = static_cast<Label>(candidate.predicted);
     d.score = candidate.score;
     d.partial = partial;
+    d.turned = candidate.turned;
     locator_.locate(candidate, d);
     ++counters_.detections;
     if (partial) ++counters_.partial;

@@ -16,13 +16,13 @@ TEST_CASE("a detection is placed on the ground by the car's pose", "[ecu][observ
   // Facing north from (10, 20): 8 m ahead and 1 m to the left is (9, 28).
   const Pose2 pose{10.0, 20.0, std::numbers::pi / 2};
   Observation o;
-  REQUIRE(ecu::observe(3, 0.9f, 8.0, 1.0, pose, ecu::ObservationGate{}, o) == ecu::Observed::kYes);
+  REQUIRE(ecu::observe(3, 0.9f, false, 8.0, 1.0, pose, ecu::ObservationGate{}, o) == ecu::Observed::kYes);
   CHECK(o.label == 3);
   CHECK(o.x == Approx(9.0).margin(1e-5));
   CHECK(o.y == Approx(28.0).margin(1e-5));
   // Further ahead, placed less precisely: weighed less.
   Observation far;
-  REQUIRE(ecu::observe(3, 0.9f, 14.0, 1.0, pose, ecu::ObservationGate{}, far) == ecu::Observed::kYes);
+  REQUIRE(ecu::observe(3, 0.9f, false, 14.0, 1.0, pose, ecu::ObservationGate{}, far) == ecu::Observed::kYes);
   CHECK(far.weight < o.weight);
   CHECK(o.weight < 1.0f);
 }
@@ -32,12 +32,12 @@ TEST_CASE("the gate refuses low scores, markings cut by the view and positions t
   const ecu::ObservationGate gate;  // 0.6, 5.5 to 16 m
   const Pose2 pose{};
   Observation o;
-  CHECK(ecu::observe(0, 0.59f, 8.0, 0.0, pose, gate, o) == ecu::Observed::kGated);
-  CHECK(ecu::observe(0, 0.9f, 5.4, 0.0, pose, gate, o) == ecu::Observed::kGated);
-  CHECK(ecu::observe(0, 0.9f, 16.1, 0.0, pose, gate, o) == ecu::Observed::kGated);
-  CHECK(ecu::observe(0, 0.6f, 5.5, 0.0, pose, gate, o) == ecu::Observed::kYes);
-  CHECK(ecu::observe(0, 0.9f, std::numeric_limits<double>::quiet_NaN(), 0.0, pose, gate, o) ==
+  CHECK(ecu::observe(0, 0.59f, false, 8.0, 0.0, pose, gate, o) == ecu::Observed::kGated);
+  CHECK(ecu::observe(0, 0.9f, false, 5.4, 0.0, pose, gate, o) == ecu::Observed::kGated);
+  CHECK(ecu::observe(0, 0.9f, false, 16.1, 0.0, pose, gate, o) == ecu::Observed::kGated);
+  CHECK(ecu::observe(0, 0.6f, false, 5.5, 0.0, pose, gate, o) == ecu::Observed::kYes);
+  CHECK(ecu::observe(0, 0.9f, false, std::numeric_limits<double>::quiet_NaN(), 0.0, pose, gate, o) ==
         ecu::Observed::kRejected);
-  CHECK(ecu::observe(0, 0.9f, 8.0, std::numeric_limits<double>::infinity(), pose, gate, o) ==
+  CHECK(ecu::observe(0, 0.9f, false, 8.0, std::numeric_limits<double>::infinity(), pose, gate, o) ==
         ecu::Observed::kRejected);
 }

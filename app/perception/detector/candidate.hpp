@@ -21,6 +21,9 @@ struct Detection {
   // detect_still() only: cut by the view's near edge; quad and centre are the
   // visible part's.
   bool partial;
+  // Read turned half way round: painted for the opposite direction, seen
+  // from behind (a marking that a half turn leaves alike never is).
+  bool turned;
 };
 inline constexpr std::size_t kMaxDetections = 32;
 
@@ -51,6 +54,7 @@ struct Candidate {
   Features features;
   int predicted;  // class index, kRejectClass for "not a marking"
   float score;
+  bool turned;  // read turned half way round: painted for the other direction
   // Index of the candidate across a letter stroke to its right
   // (DetectorConfig::stroke_min_shared), reported with this one when both
   // get the same class; -1 none.

@@ -19,6 +19,7 @@ void CandidateClassifier::classify(const cv::Mat& bev, const cv::Mat& mask, Cand
   const Reading reading = read(candidate.features, scratch_, probabilities);
   candidate.predicted = reading.label;
   candidate.score = reading.score;
+  candidate.turned = reading.turned;
 }
 
 CandidateClassifier::Reading CandidateClassifier::read(const Features& upright_features, PatchScratch& patch,

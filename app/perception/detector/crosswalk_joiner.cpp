@@ -58,6 +58,7 @@ std::size_t CrosswalkJoiner::join(std::span<Candidate> candidates,
                            static_cast<int>(length - 1);
     Candidate& crosswalk = bar(0);
     crosswalk.predicted = kCrosswalk;
+    crosswalk.turned = false;
     if (!seen_moved(bar(0), -pitch_rows) || !seen_moved(bar(length - 1), pitch_rows)) {
       crosswalk.clipped = true;  // may go on unseen
       crosswalk.clipped_near_only = false;

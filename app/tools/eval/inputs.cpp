@@ -46,19 +46,24 @@ std::optional<double> to_number(std::string_view text) {
 }
 
 // Reads a CSV with a fixed header line, calling `row(fields)` for each
-// non-empty data line; `row` returns an error text or an empty string.
+// non-empty data line; `row` returns an error text or an empty string. A
+// file may end its header with the columns `later` (added since the first
+// version): its rows then hold them too.
 class CsvFile {
  public:
   template <typename Row>
-  static Status read(const std::string& path, std::string_view header, Row&& row) {
+  static Status read(const std::string& path, std::string_view header, Row&& row,
+                     std::string_view later = {}) {
     const Result<std::string> read = tools::read_input(path, kMaxInputBytes, "a CSV file");
     if (!read) return read.error();
     const std::string& text = *read;
     Progress progress(path, count_lines(text));
     tools::Lines lines(text);
     std::string_view line;
-    if (!lines.next(line) || trim(line) != header)
-      return markloop::error(path + ":1: expected the header '" + std::string(header) + "'");
+    const std::string full = later.empty() ? std::string(header) : std::string(header) + "," + std::string(later);
+    if (!lines.next(line) || (trim(line) != header && trim(line) != full))
+      return markloop::error(path + ":1: expected the header '" + full + "'");
+    if (trim(line) == full) header = full;
     const std::size_t columns = split_fields(header).size();
     while (lines.next(line)) {
       if ((lines.number() & 0xFFF) == 0) progress.update(lines.number());
@@ -214,15 +219,19 @@ Result<std::vector<DetectionRecord>> load_detections(const std::string& path, st
       [&](const std::vector<std::string_view>& f) {
         std::string problem;
         DetectionRecord d;
+        std::uint32_t turned = 0;
         if (!frame_field("frame", f[0], frame_count, d.frame, problem) ||
             !class_field("label", f[1], d.label, problem) || !number_field("score", f[2], d.score, problem) ||
             !quad_fields(f, 3, d.quad, problem) || !number_field("ground_x", f[11], d.ground_x, problem) ||
-            !number_field("ground_y", f[12], d.ground_y, problem))
+            !number_field("ground_y", f[12], d.ground_y, problem) ||
+            (f.size() > 13 && !whole_field("turned", f[13], 2.0, turned, problem)))
           return problem;
+        d.turned = turned == 1;
         if (d.score < 0.0 || d.score > 1.0) return "score " + std::string(f[2]) + " is outside [0, 1]";
         out.push_back(d);
         return problem;
-      });
+      },
+      "turned");
   if (!read) return read.error();
   std::stable_sort(out.begin(), out.end(),
                    [](const DetectionRecord& a, const DetectionRecord& b) { return a.frame < b.frame; });

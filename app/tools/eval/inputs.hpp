@@ -36,7 +36,9 @@ struct VisibleMarking {
   Quad quad{};
 };
 
-// The ECU's --detections-out: frame,label,score,x1,y1,...,x4,y4,ground_x,ground_y.
+// The ECU's --detections-out: frame,label,score,x1,y1,...,x4,y4,ground_x,ground_y
+// and turned (1: read turned half way round; files written before it was
+// added lack the column: 0).
 struct DetectionRecord {
   FrameIndex frame = 0;
   Label label = 0;
@@ -44,6 +46,7 @@ struct DetectionRecord {
   Quad quad{};
   double ground_x = 0.0;
   double ground_y = 0.0;
+  bool turned = false;
 };
 
 // The ECU's --landmarks-out: the landmarks in its database at the end,

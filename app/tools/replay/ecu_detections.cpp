@@ -21,7 +21,8 @@ Result<EcuDetections> load_ecu_detections(const std::string& path, const std::ve
   out.records.reserve(loaded->size());
   for (const eval::DetectionRecord& d : *loaded) {
     Observation o;
-    if (ecu::observe(d.label, static_cast<float>(d.score), d.ground_x, d.ground_y, poses[d.frame], gate, o) !=
+    if (ecu::observe(d.label, static_cast<float>(d.score), d.turned, d.ground_x, d.ground_y, poses[d.frame], gate,
+                     o) !=
         ecu::Observed::kYes) {
       ++out.gated;
       continue;
@@ -33,6 +34,7 @@ Result<EcuDetections> load_ecu_detections(const std::string& path, const std::ve
     r.z = o.x;
     r.label = std::string(perception::marking_class_name(d.label));
     r.weight = o.weight;
+    r.facing = o.facing;
     out.records.push_back(std::move(r));
   }
   return out;

@@ -4,9 +4,11 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string_view>
 #include <utility>
 
+#include "app/perception/marking_classes.hpp"
 #include "app/tools/common/tool_files.hpp"
 
 namespace markloop::replay {
@@ -115,6 +117,7 @@ bool read_field(int field, std::string_view token, MarkingRecord& r) {
       return parse_number(token, r.z);
     default:
       r.label = std::string(token.substr(0, kMaxLabelLength + 1));
+      r.facing = facing_read_upright(r.label);
       return true;
   }
 }
@@ -144,6 +147,11 @@ Result<MarkingRecord> read_record(Tokens& tokens, long long index, long long cou
 }
 
 }  // namespace
+
+Facing facing_read_upright(std::string_view label) {
+  const std::optional<Label> known = perception::marking_class_from_name(label);
+  return known ? perception::facing_of(*known, false) : Facing::kAny;
+}
 
 Result<std::vector<MarkingRecord>> load_markings(const std::string& path) {
   Tokens tokens;

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 
@@ -23,7 +24,14 @@ struct MarkingRecord {
   std::string label;
   int line = 0;         // in its file; 0: not known
   float weight = 1.0f;  // Observation::weight
+  // Observation::facing. The file holds markings read as painted: facing
+  // the car, unless a half turn leaves the class alike or it is not one of
+  // markloop's classes (facing_read_upright).
+  Facing facing = Facing::kAny;
 };
+
+// The facing of a marking of class `label` read as painted.
+Facing facing_read_upright(std::string_view label);
 
 // Interns label names into the engine's opaque label ids.
 class LabelTable {
@@ -72,7 +80,7 @@ Result<TruePoses> load_frames_csv(const std::string& path);
 
 // The paper's camera-style axes to the engine's ground frame.
 inline Observation to_ground(const MarkingRecord& r, Label label) {
-  return {label, r.z, -r.x, r.weight};
+  return {label, r.z, -r.x, r.weight, r.facing};
 }
 
 }  // namespace markloop::replay
