@@ -21,8 +21,8 @@ namespace markloop::perception {
 struct BirdsEyeRegion {
   float x_near_m = 3.0f;  // ahead of the vehicle reference point
   float x_far_m = 20.0f;
-  float y_left_m = 6.0f;  // left of the vehicle reference point
-  float y_right_m = -6.0f;
+  float y_left_m = 9.0f;  // left of the vehicle reference point
+  float y_right_m = -9.0f;
   float x_step_m = 0.05f;  // metres per output row (along the road)
   float y_step_m = 0.04f;  // metres per output column (across the road)
 };

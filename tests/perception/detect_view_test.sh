@@ -11,7 +11,7 @@ source "$(dirname "$0")/../cli_check.sh"
 images=("$work"/set/images/*.png)
 check "view written" 0 "" -- "$detect" --camera "$work/set/camera.yaml" --view "$work/view" "${images[@]}"
 # PNG header: width and height, big-endian, at bytes 16..23. The simulator's
-# camera views 346 x 316 pixels (the region and its guard band).
+# camera views 346 x 466 pixels (the region and its guard band).
 for image in "${images[@]}"; do
   view="$work/view/$(basename "${image%.png}").png"
   if [ ! -f "$view" ]; then
@@ -19,8 +19,8 @@ for image in "${images[@]}"; do
   fi
   read -r w1 w2 w3 w4 h1 h2 h3 h4 < <(od -An -tu1 -j16 -N8 "$view")
   width=$(( (w1 << 24) | (w2 << 16) | (w3 << 8) | w4 )) height=$(( (h1 << 24) | (h2 << 16) | (h3 << 8) | h4 ))
-  if [ "$width" != 632 ] || [ "$height" != 692 ]; then
-    echo "FAIL view of $image: ${width}x${height}, want 632x692"; failures=$((failures + 1))
+  if [ "$width" != 932 ] || [ "$height" != 692 ]; then
+    echo "FAIL view of $image: ${width}x${height}, want 932x692"; failures=$((failures + 1))
   else
     echo "ok   view of $(basename "$image"): ${width}x${height}"
   fi

@@ -63,6 +63,15 @@ struct SureModel {
   float zero = 0.0f;
   MlpModel model;
 };
+
+// A region whose sides the default camera sees from 9 m ahead: the default
+// region reaches further to the sides than the camera sees near the car.
+DetectorConfig with_sides_in_view(DetectorConfig config) {
+  config.region.y_left_m = 6.0f;
+  config.region.y_right_m = -6.0f;
+  return config;
+}
+
 }  // namespace
 
 TEST_CASE("bird's-eye view: pixels map back to the ground points they show") {
@@ -300,7 +309,7 @@ TEST_CASE("detector: a word split by its I, set apart as a line, is one detectio
   const CameraModel camera = default_camera_model();
   const int xing = static_cast<int>(*marking_class_from_name("xing"));
   const SureModel sure(xing);
-  DetectorConfig config;
+  DetectorConfig config = with_sides_in_view({});
   config.model = &sure.model;
   config.cnn_share = 0.0f;  // the sure model alone
   // A letter: an outline 2.4 m along and 0.6 m across, strokes 0.15 m wide.
@@ -696,7 +705,7 @@ TEST_CASE("detector: a still reports a marking cut by the near edge, marked part
 TEST_CASE("detector: the guard band shows a marking ending at the region's edge whole") {
   const CameraModel camera = default_camera_model();
   const SureModel sure(static_cast<int>(*marking_class_from_name("forward")));
-  DetectorConfig config;
+  DetectorConfig config = with_sides_in_view({});
   config.model = &sure.model;
   config.cnn_share = 0.0f;  // the sure model alone
   const double far = config.region.x_far_m, left = config.region.y_left_m;
@@ -738,7 +747,7 @@ TEST_CASE("detector: the guard band shows a marking ending at the region's edge 
 TEST_CASE("detector: a lane dash coming into view does not make a marking look cut") {
   const CameraModel camera = default_camera_model();
   const SureModel sure(static_cast<int>(*marking_class_from_name("stop")));
-  DetectorConfig config;
+  DetectorConfig config = with_sides_in_view({});
   config.model = &sure.model;
   config.cnn_share = 0.0f;  // the sure model alone
   cv::Mat frame;
