@@ -84,7 +84,7 @@ bool Drive::next(DriveFrame& out) {
         const Marking& m = scenario_.markings[index];
         const Pose2 rel = compose(to_vehicle, Pose2{m.x, m.y, 0.0});
         if (rel.x < config_.view_near_m || rel.x > config_.view_far_m ||
-            std::abs(rel.y) > config_.view_half_width_m)
+            std::abs(rel.y) > std::min(config_.view_half_width_m, config_.view_slope * rel.x))
           continue;
         // Markings facing the other way are painted for the opposite lane:
         // upside down, only the shapes that a half turn leaves alike are

@@ -16,10 +16,13 @@ namespace markloop::sim {
 struct DriveConfig {
   double speed_mps = 10.0;
   double fps = 10.0;
-  // Camera footprint on the ground, in the vehicle frame (x ahead, y left).
+  // Camera footprint on the ground, in the vehicle frame (x ahead, y left):
+  // the detector's region (two lanes over either side) within the camera's
+  // field of view (|y| at most view_slope * x).
   double view_near_m = 4.0;
   double view_far_m = 20.0;
-  double view_half_width_m = 5.5;
+  double view_half_width_m = 8.5;
+  double view_slope = 0.7;
   // Perception errors.
   double detection_probability = 0.85;
   double label_error_probability = 0.03;
