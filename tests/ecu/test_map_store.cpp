@@ -49,6 +49,7 @@ void fill(SequenceDatabase& db, unsigned landmarks, std::uint32_t seed = 1) {
     l.car_y = 0.25f;
     l.car_yaw = 0.01f * static_cast<float>(i);
     l.has_car_pose = i % 3 != 0;
+    l.facing = static_cast<Facing>(i % 3);
     l.t = 1.25 * i;
     l.station = 12.5 * i;
     ids.push_back(db.add_landmark(l));
@@ -116,6 +117,7 @@ TEST_CASE("a saved map loads back with the same landmarks and sequences") {
     CHECK(a.y == b.y);
     CHECK(a.car_yaw == b.car_yaw);
     CHECK(a.has_car_pose == b.has_car_pose);
+    CHECK(a.facing == b.facing);
     CHECK(a.last_frame == b.last_frame);
     CHECK(b.t == a.t - shift_s);
     CHECK(b.station == a.station - shift_m);

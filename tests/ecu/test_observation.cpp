@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <string_view>
 
 #include "app/ecu/observation.hpp"
 
@@ -40,4 +41,19 @@ TEST_CASE("the gate refuses low scores, markings cut by the view and positions t
         ecu::Observed::kRejected);
   CHECK(ecu::observe(0, 0.9f, false, 8.0, std::numeric_limits<double>::infinity(), pose, gate, o) ==
         ecu::Observed::kRejected);
+}
+
+TEST_CASE("a detection read turned faces against the car, unless a half turn leaves its class alike",
+          "[ecu][observation]") {
+  const auto facing = [](std::string_view name, bool turned) {
+    Observation o;
+    REQUIRE(ecu::observe(*perception::marking_class_from_name(name), 0.9f, turned, 8.0, 0.0, Pose2{},
+                         ecu::ObservationGate{}, o) == ecu::Observed::kYes);
+    return o.facing;
+  };
+  CHECK(facing("bike", false) == Facing::kAlong);
+  CHECK(facing("bike", true) == Facing::kAgainst);
+  CHECK(facing("forward", true) == Facing::kAgainst);
+  CHECK(facing("crosswalk", false) == Facing::kAny);
+  CHECK(facing("stopline", true) == Facing::kAny);
 }

@@ -47,6 +47,29 @@ TEST_CASE("observations of one marking fuse into one landmark, labelled by vote"
   CHECK(tracker.active() == 0);
 }
 
+TEST_CASE("a landmark faces the way most readings of its label did", "[tracker]") {
+  // (facing of frames 0..4, of frame 5 on, landmark's facing)
+  struct Case {
+    Facing first, then, expected;
+  };
+  for (const Case c : {Case{Facing::kAlong, Facing::kAlong, Facing::kAlong},
+                       Case{Facing::kAgainst, Facing::kAlong, Facing::kAgainst},
+                       Case{Facing::kAny, Facing::kAny, Facing::kAny}}) {
+    LandmarkTracker tracker(TrackerConfig{});
+    // Seven readings; from frame 5 two more facing `then`, and a misread
+    // label whose facing does not count.
+    for (FrameIndex f = 0; f < 8; ++f) {
+      const Observation obs{f == 7 ? Label{4} : Label{2}, 20.0f, 0.0f, 1.0f, f < 5 ? c.first : c.then};
+      tracker.observe(frame_at(f), f, {&obs, 1});
+    }
+    FixedVector<Landmark, 8> out;
+    REQUIRE(tracker.commit(100.0, false, out));
+    REQUIRE(out.size() == 1);
+    CHECK(out[0].label == 2);
+    CHECK(out[0].facing == c.expected);
+  }
+}
+
 TEST_CASE("markings side by side in one frame stay separate", "[tracker]") {
   TrackerConfig config;
   config.association_radius_m = 5.0;  // wider than the lane gap on purpose

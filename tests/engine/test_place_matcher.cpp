@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <vector>
 
 #include "app/engine/sequence_engine.hpp"
@@ -20,7 +21,15 @@ struct Collector final : MatchSink {
 struct Mark {
   double x, y;
   Label label;
+  // The direction it is painted for; NaN: alike from either way (a
+  // crosswalk). A car reads it turned when driving the other way.
+  double painted_yaw = std::nan("");
 };
+
+Facing facing_seen(const Mark& m, double car_yaw) {
+  if (std::isnan(m.painted_yaw)) return Facing::kAny;
+  return std::cos(m.painted_yaw - car_yaw) > 0.0 ? Facing::kAlong : Facing::kAgainst;
+}
 
 struct Point {
   double x, y;
@@ -54,7 +63,8 @@ class Car {
       const double ahead = (m.x - x) * std::cos(yaw) + (m.y - y) * std::sin(yaw);
       const double side = -(m.x - x) * std::sin(yaw) + (m.y - y) * std::cos(yaw);
       if (ahead >= 4 && ahead <= 20 && std::abs(side) <= 8)
-        seen.push_back({m.label, static_cast<float>(m.x), static_cast<float>(m.y + drift)});
+        seen.push_back({m.label, static_cast<float>(m.x), static_cast<float>(m.y + drift), 1.0f,
+                        facing_seen(m, yaw)});
     }
     engine_.process_frame({frame, frame / 10.0, true, {x, y + drift, yaw}}, seen, sink);
   }
@@ -314,6 +324,47 @@ TEST_CASE("a street driven back the other way is the same place", "[engine][plac
   const Outcome o = judge(car, car.sink.events);
   CHECK(o.wrong == 0);
   CHECK(o.matches >= 3);
+}
+
+TEST_CASE("a street driven back the other way is the same place, its markings read turned", "[engine][place]") {
+  std::vector<Mark> world = town();
+  for (Mark& m : world) m.painted_yaw = 0.0;  // all painted for driving east
+  SequenceEngine engine(place_config(3));
+  Car car(engine, world);
+  car.drive({{0, 0}, {330, 0}, {330, 300}, {320, 300}, {320, -1}});
+  car.drive({{320, -1}, {0, -1}});
+  engine.flush(car.sink);
+  const Outcome o = judge(car, car.sink.events);
+  CHECK(o.wrong == 0);
+  CHECK(o.matches >= 3);
+}
+
+TEST_CASE("markings painted for opposite directions are two places, though the drift lays them together",
+          "[engine][place]") {
+  // Three markings on an eastbound street (y = 0) and the same three on a
+  // westbound one 60 m north. The odometry lays the second street on the
+  // first, the cars 1 m apart, as a street driven back the other way.
+  const auto drive = [](double west_painted_yaw) {
+    std::vector<Mark> world;
+    for (const Mark m : {Mark{100, -1, 3}, Mark{107, 1, 5}, Mark{115, -1, 7}}) {
+      world.push_back({m.x, m.y, m.label, 0.0});
+      world.push_back({m.x, m.y + 61, m.label, west_painted_yaw});
+    }
+    SequenceEngine engine(place_config(3));
+    Car car(engine, world);
+    car.drive({{0, 0}, {260, 0}, {260, 60}});
+    car.drift = -60.0;
+    car.drive({{260, 60}, {0, 60}});
+    engine.flush(car.sink);
+    return judge(car, car.sink.events);
+  };
+  // Painted for the westbound car, read upright by it: two markings each.
+  const Outcome painted_west = drive(std::numbers::pi);
+  CHECK(painted_west.matches == 0);
+  // Painted the same way as the eastbound street's, the westbound car reads
+  // them turned, as on the same street: a place the engine cannot tell from
+  // the first.
+  CHECK(drive(0.0).wrong >= 1);
 }
 
 TEST_CASE("a place met from a cross street names the frames where the cars were closest", "[engine][place]") {

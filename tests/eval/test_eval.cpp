@@ -513,6 +513,27 @@ TEST_CASE("malformed inputs are reported with file and line") {
   error = error_of(load_detections(dir / "d.csv", 10));
   CHECK(error == (dir / "d.csv").string() + ":2: y4 is not a finite number: 'nan'");
 
+  fixture::write_text(dir / "d.csv",
+                      "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y,turned\n"
+                      "1,bike,0.5,0,0,1,0,1,1,0,1,2,3,1\n2,bike,0.5,0,0,1,0,1,1,0,1,2,3,0\n");
+  const Result<std::vector<DetectionRecord>> turned = load_detections(dir / "d.csv", 10);
+  REQUIRE(turned);
+  REQUIRE(turned->size() == 2);
+  CHECK((*turned)[0].turned);
+  CHECK_FALSE((*turned)[1].turned);
+
+  fixture::write_text(dir / "d.csv",
+                      "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y,turned\n"
+                      "1,bike,0.5,0,0,1,0,1,1,0,1,2,3,2\n1,bike,0.5,0,0,1,0,1,1,0,1,2,3\n");
+  error = error_of(load_detections(dir / "d.csv", 10));
+  CHECK_THAT(error, StartsWith((dir / "d.csv").string() + ":2: turned"));
+
+  fixture::write_text(dir / "d.csv",
+                      "frame,label,score,x1,y1,x2,y2,x3,y3,x4,y4,ground_x,ground_y,turned\n"
+                      "1,bike,0.5,0,0,1,0,1,1,0,1,2,3\n");
+  error = error_of(load_detections(dir / "d.csv", 10));
+  CHECK_THAT(error, StartsWith((dir / "d.csv").string() + ":2: expected 14 comma-separated fields"));
+
   fixture::write_text(dir / "m.csv", "id,class,x,y\n");
   error = error_of(load_world_markings(dir / "m.csv"));
   CHECK(error == (dir / "m.csv").string() + ":1: expected the header 'id,class,x,y,heading'");
