@@ -75,6 +75,7 @@ inline EngineConfig ecu_engine_defaults() {
   c.match.place_landmarks = 3;
   c.match.far_run_m = 300.0;
   c.match.place_within_m = 2000.0;
+  c.match.place_opposite_within_m = 1200.0;
   c.match.place_min_bits = 6.0;
   c.match.place_pair_min_bits = 4.0;
   c.match.place_pair_max_unseen = 0;

@@ -453,6 +453,16 @@ constexpr Setting kSettings[] = {
      .section = S::kEngine,
      .description = "places are matched only between visits at most this far apart along the drive "
                     "(further, the drift limits admit look-alikes)"},
+    {.key = "engine.place_opposite_within_m",
+     .kind = K::kReal,
+     .member = member([](auto& c) -> auto& { return c.engine.match.place_opposite_within_m; }),
+     .min = 0.0,
+     .max = 1.0e6,
+     .unit = "m",
+     .section = S::kEngine,
+     .description = "a place of two or of common labels met from the other direction (an "
+                    "intersection's layout, alike at every intersection turned half way) is matched "
+                    "only between visits at most this far apart along the drive"},
     {.key = "engine.place_min_bits",
      .kind = K::kReal,
      .member = member([](auto& c) -> auto& { return c.engine.match.place_min_bits; }),

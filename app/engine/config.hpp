@@ -133,6 +133,11 @@ struct MatchConfig {
   // Places are matched only where the two visits lie at most this far apart
   // along the drive: further, the drift limits admit look-alikes.
   double place_within_m = 2500.0;
+  // A place of two or of common labels whose cars drove opposite ways (an
+  // intersection's crosswalks and stop lines seen from the other side) looks
+  // like every intersection of its layout: only the odometry tells them
+  // apart, so it is matched only between visits at most this far apart.
+  double place_opposite_within_m = 2500.0;
 };
 
 // What the odometry can have drifted over `driven_m` of driving, by the

@@ -180,6 +180,10 @@ bool PlaceMatcher::passes_checks(const SequenceDatabase& database, const Hypothe
     ++counters_.rejected_residual;
     return false;
   }
+  if (met_from_opposite(h) && h.driven_m > config_.place_opposite_within_m) {
+    ++counters_.rejected_drift;
+    return false;
+  }
   unsigned max_unseen = config_.place_pair_max_unseen;
   if (h.pairs.size() == 2) {
     const Roads on = roads(h);
@@ -343,6 +347,13 @@ PlaceMatcher::Roads PlaceMatcher::roads(const Hypothesis& h) const {
     roads = Roads::TurnedIn;
   }
   return roads;
+}
+
+bool PlaceMatcher::met_from_opposite(const Hypothesis& h) {
+  const Pair& newest = h.pairs[0];
+  if (!newest.query->has_car_pose || !newest.stored->has_car_pose) return false;
+  const double stored_yaw = newest.stored->car_yaw + h.fit.transform.yaw;
+  return std::cos(wrap_angle(newest.query->car_yaw - stored_yaw)) < 0.0;
 }
 
 double PlaceMatcher::heading_after(const Landmark& query) const {

@@ -122,6 +122,9 @@ class PlaceMatcher {
   // later (TurnedIn: the car turned into the road there), or not (Across).
   enum class Roads { One, TurnedIn, Across };
   Roads roads(const Hypothesis& h) const;
+  // Whether the cars passed the newest pair driving more than a quarter turn
+  // apart: the place was met from the other side.
+  static bool met_from_opposite(const Hypothesis& h);
   // The car's heading on its recent path a little past `query`, or now.
   double heading_after(const Landmark& query) const;
   // Whether two headings are nearly the same or opposite.

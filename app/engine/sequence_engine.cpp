@@ -55,7 +55,7 @@ const char* validate(const EngineConfig& c) {
   if (c.match.place_landmarks != 0 &&
       (c.match.place_landmarks < kMinSequenceLength || c.match.place_landmarks > kMaxSequenceLength))
     return "place landmarks must be 0 (off) or between 2 and 10";
-  if (!finite_non_negative(c.match.place_within_m))
+  if (!finite_non_negative(c.match.place_within_m) || !finite_non_negative(c.match.place_opposite_within_m))
     return "place distance along the drive must be non-negative";
   if (!finite_positive(c.match.place_max_residual_m))
     return "place residual must be a positive number of metres";

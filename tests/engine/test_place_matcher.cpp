@@ -326,6 +326,25 @@ TEST_CASE("a street driven back the other way is the same place", "[engine][plac
   CHECK(o.matches >= 3);
 }
 
+TEST_CASE("a place of common labels met from the other direction is matched only so far back",
+          "[engine][place]") {
+  // The street driven east, then back west some 600 to 900 m later.
+  const std::vector<Mark> world = town();
+  const auto places = [&](double opposite_within_m) {
+    EngineConfig config = places_of_two_config();
+    config.match.place_min_bits = 100.0;  // every place's labels too common
+    config.match.place_opposite_within_m = opposite_within_m;
+    SequenceEngine engine(config);
+    Car car(engine, world);
+    car.drive({{0, 0}, {330, 0}, {330, 300}, {320, 300}, {320, -1}, {0, -1}});
+    engine.flush(car.sink);
+    CHECK(judge(car, car.sink.events).wrong == 0);
+    return engine.place_counters().matches;
+  };
+  CHECK(places(2500.0) >= 1);
+  CHECK(places(500.0) == 0);
+}
+
 TEST_CASE("a street driven back the other way is the same place, its markings read turned", "[engine][place]") {
   std::vector<Mark> world = town();
   for (Mark& m : world) m.painted_yaw = 0.0;  // all painted for driving east

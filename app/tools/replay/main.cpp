@@ -90,6 +90,9 @@ engine (each value must lie in the range given):
   --place-within M       places are matched only between visits at most this
                          far apart along the drive, 0 to 1000000 m; default
                          2500
+  --place-opposite-within M
+                         ... and a place of two or of common labels met from
+                         the other direction, 0 to 1000000 m; default 2500
   --place-window M       the landmarks released within this much driving
                          make a place, 1 to 1000 m; default 60
   --place-bits B         a place's labels must be rare enough: the sum of
@@ -189,6 +192,7 @@ constexpr OptionSpec kOptions[] = {
     {"--place-search", "M", "largest drift a place match allows"},
     {"--place-distinct", "M", "no other place within this distance may fit as well"},
     {"--place-within", "M", "places only between visits this close along the drive"},
+    {"--place-opposite-within", "M", "... and places met from the other direction"},
     {"--place-window", "M", "the landmarks released within this much driving make a place"},
     {"--place-bits", "B", "least evidence of a place's labels, in bits"},
     {"--place-pair-bits", "B", "least evidence of a two-marking place, in bits"},
@@ -279,6 +283,9 @@ constexpr NumericOption kNumericOptions[] = {
     {"--place-within",
      {0.0, 1e6, "metres", false},
      [](Options& o, double v) { o.engine.match.place_within_m = v; }},
+    {"--place-opposite-within",
+     {0.0, 1e6, "metres", false},
+     [](Options& o, double v) { o.engine.match.place_opposite_within_m = v; }},
     {"--place-window",
      {1.0, 1000.0, "metres", false},
      [](Options& o, double v) { o.engine.match.place_window_m = v; }},
