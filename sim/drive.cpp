@@ -89,7 +89,8 @@ bool Drive::next(DriveFrame& out) {
         // Markings facing the other way are painted for the opposite lane:
         // upside down, only the shapes that a half turn leaves alike are
         // recognised (a stop line, a crosswalk, a diamond).
-        if (std::cos(wrap_angle(m.heading - truth.yaw)) < 0.5 && !perception::same_when_turned(m.label)) continue;
+        if (std::cos(wrap_angle(m.heading - truth.yaw)) < 0.5 && !perception::same_when_turned(m.label))
+          continue;
         if (unit(rng_) >= config_.detection_probability) continue;
         observe(rel.x, rel.y, m.label, m.id);
       }

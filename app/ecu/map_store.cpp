@@ -86,7 +86,8 @@ bool decode_landmark(const std::uint8_t* p, Landmark& l) {
   l.car_x = getf(p + 20);
   l.car_y = getf(p + 24);
   l.car_yaw = getf(p + 28);
-  if (p[32] > 1 || p[33] > static_cast<std::uint8_t>(Facing::kAgainst) || p[34] != 0 || p[35] != 0) return false;
+  if (p[32] > 1 || p[33] > static_cast<std::uint8_t>(Facing::kAgainst) || p[34] != 0 || p[35] != 0)
+    return false;
   l.has_car_pose = p[32] == 1;
   l.facing = static_cast<Facing>(p[33]);
   l.t = getd(p + 36);

@@ -73,8 +73,8 @@ struct Landmark {
   float car_yaw = 0.0f;
   bool has_car_pose = false;
   Facing facing = Facing::kAny;  // against car_yaw
-  double t = 0.0;        // time of last_frame, seconds
-  double station = 0.0;  // distance travelled along the drive, metres
+  double t = 0.0;                // time of last_frame, seconds
+  double station = 0.0;          // distance travelled along the drive, metres
 };
 
 // The car at the query seen from the car at the match, both where they came

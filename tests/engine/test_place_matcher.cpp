@@ -63,8 +63,8 @@ class Car {
       const double ahead = (m.x - x) * std::cos(yaw) + (m.y - y) * std::sin(yaw);
       const double side = -(m.x - x) * std::sin(yaw) + (m.y - y) * std::cos(yaw);
       if (ahead >= 4 && ahead <= 20 && std::abs(side) <= 8)
-        seen.push_back({m.label, static_cast<float>(m.x), static_cast<float>(m.y + drift), 1.0f,
-                        facing_seen(m, yaw)});
+        seen.push_back(
+            {m.label, static_cast<float>(m.x), static_cast<float>(m.y + drift), 1.0f, facing_seen(m, yaw)});
     }
     engine_.process_frame({frame, frame / 10.0, true, {x, y + drift, yaw}}, seen, sink);
   }
@@ -345,7 +345,8 @@ TEST_CASE("a place of common labels met from the other direction is matched only
   CHECK(places(500.0) == 0);
 }
 
-TEST_CASE("a street driven back the other way is the same place, its markings read turned", "[engine][place]") {
+TEST_CASE("a street driven back the other way is the same place, its markings read turned",
+          "[engine][place]") {
   std::vector<Mark> world = town();
   for (Mark& m : world) m.painted_yaw = 0.0;  // all painted for driving east
   SequenceEngine engine(place_config(3));

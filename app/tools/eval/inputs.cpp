@@ -60,7 +60,8 @@ class CsvFile {
     Progress progress(path, count_lines(text));
     tools::Lines lines(text);
     std::string_view line;
-    const std::string full = later.empty() ? std::string(header) : std::string(header) + "," + std::string(later);
+    const std::string full =
+        later.empty() ? std::string(header) : std::string(header) + "," + std::string(later);
     if (!lines.next(line) || (trim(line) != header && trim(line) != full))
       return markloop::error(path + ":1: expected the header '" + full + "'");
     if (trim(line) == full) header = full;

@@ -146,12 +146,13 @@ inline constexpr double kPassMargin_s = 1.0;
 // distance on the ground.
 inline constexpr double kSameMarking_m = TrackerConfig{}.association_radius_m;
 
-// A pass counts when the marking's centre lay in the detector's default
-// region in one of its frames, in the car's frame (frames.csv's pose), the
-// marking was out of view at the drive's first frame, and the drive went on
-// for kSettleDistance_m after the pass: the ECU holds a landmark back until
-// the car is past it (engine.release_lag_m at most), and a drive's last
-// tracks are never committed.
+// A pass counts when the marking's centre lay in this region in one of its
+// frames, in the car's frame (frames.csv's pose; the car's lane and the next
+// ones, kept whatever the detector's region so that figures stay
+// comparable), the marking was out of view at the drive's first frame, and
+// the drive went on for kSettleDistance_m after the pass: the ECU holds a
+// landmark back until the car is past it (engine.release_lag_m at most), and
+// a drive's last tracks are never committed.
 struct PassRegion {
   double ahead_min_m = 3.0;
   double ahead_max_m = 20.0;

@@ -21,9 +21,8 @@ Result<EcuDetections> load_ecu_detections(const std::string& path, const std::ve
   out.records.reserve(loaded->size());
   for (const eval::DetectionRecord& d : *loaded) {
     Observation o;
-    if (ecu::observe(d.label, static_cast<float>(d.score), d.turned, d.ground_x, d.ground_y, poses[d.frame], gate,
-                     o) !=
-        ecu::Observed::kYes) {
+    if (ecu::observe(d.label, static_cast<float>(d.score), d.turned, d.ground_x, d.ground_y, poses[d.frame],
+                     gate, o) != ecu::Observed::kYes) {
       ++out.gated;
       continue;
     }
