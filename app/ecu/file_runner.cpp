@@ -87,15 +87,15 @@ Status write_landmarks_csv(const std::string& path, const SequenceDatabase& data
     const int reason = errno;
     return error(path + ": cannot write: " + std::strerror(reason));
   }
-  std::fputs("label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose\n", file);
+  std::fputs("label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose,facing\n", file);
   for (LandmarkId id = database.first_landmark_id(); id != database.next_landmark_id(); ++id) {
     const Landmark* l = database.landmark(id);
     if (l == nullptr || l->station < 0.0) continue;
     const std::string_view name = perception::marking_class_name(l->label);
-    std::fprintf(file, "%.*s,%u,%u,%u,%.3f,%.3f,%.3f,%.3f,%.6f,%d\n", static_cast<int>(name.size()),
+    std::fprintf(file, "%.*s,%u,%u,%u,%.3f,%.3f,%.3f,%.3f,%.6f,%d,%d\n", static_cast<int>(name.size()),
                  name.data(), unsigned{l->observations}, l->first_frame, l->last_frame, double(l->x),
                  double(l->y), double(l->car_x), double(l->car_y), double(l->car_yaw),
-                 l->has_car_pose ? 1 : 0);
+                 l->has_car_pose ? 1 : 0, static_cast<int>(l->facing));
   }
   const bool ok = std::ferror(file) == 0;
   const bool closed = std::fclose(file) == 0;

@@ -33,7 +33,7 @@ rows = open(f"{work}/ecu-landmarks.csv").read().splitlines()
 landmarks = json.load(open(f"{work}/eval.json"))["landmarks"]
 passes = json.load(open(f"{work}/eval.json"))["passes"]
 checks = [
-    ("the header", rows[0] == "label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose", rows[0]),
+    ("the header", rows[0] == "label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose,facing", rows[0]),
     ("a few landmarks", summary["landmarks"] >= 5, summary["landmarks"]),
     ("one row per landmark of the database", len(rows) - 1 == summary["landmarks"], len(rows) - 1),
     ("all judged by markloop-eval", landmarks["count"] == summary["landmarks"] and landmarks["without_pose"] == 0,

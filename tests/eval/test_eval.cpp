@@ -534,6 +534,21 @@ TEST_CASE("malformed inputs are reported with file and line") {
   error = error_of(load_detections(dir / "d.csv", 10));
   CHECK_THAT(error, StartsWith((dir / "d.csv").string() + ":2: expected 14 comma-separated fields"));
 
+  fixture::write_text(
+      dir / "l.csv",
+      "label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose,facing\n"
+      "bike,4,1,3,10,0,9,0,0,1,2\n");
+  const Result<std::vector<LandmarkRecord>> facing = load_landmarks(dir / "l.csv", 10);
+  REQUIRE(facing);
+  REQUIRE(facing->size() == 1);
+  CHECK((*facing)[0].facing == Facing::kAgainst);
+  fixture::write_text(
+      dir / "l.csv",
+      "label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose,facing\n"
+      "bike,4,1,3,10,0,9,0,0,1,3\n");
+  error = error_of(load_landmarks(dir / "l.csv", 10));
+  CHECK_THAT(error, StartsWith((dir / "l.csv").string() + ":2: facing is not a whole number below 3"));
+
   fixture::write_text(dir / "m.csv", "id,class,x,y\n");
   error = error_of(load_world_markings(dir / "m.csv"));
   CHECK(error == (dir / "m.csv").string() + ":1: expected the header 'id,class,x,y,heading'");

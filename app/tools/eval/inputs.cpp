@@ -247,6 +247,7 @@ Result<std::vector<LandmarkRecord>> load_landmarks(const std::string& path, std:
         std::string problem;
         LandmarkRecord l;
         std::uint32_t has_car_pose = 0;
+        std::uint32_t facing = 0;
         if (!class_field("label", f[0], l.label, problem) ||
             !whole_field("observations", f[1], 65536.0, l.observations, problem) ||
             !frame_field("first_frame", f[2], frame_count, l.first_frame, problem) ||
@@ -255,14 +256,17 @@ Result<std::vector<LandmarkRecord>> load_landmarks(const std::string& path, std:
             !number_field("car_x", f[6], l.car_x, problem) ||
             !number_field("car_y", f[7], l.car_y, problem) ||
             !number_field("car_yaw", f[8], l.car_yaw, problem) ||
-            !whole_field("has_car_pose", f[9], 2.0, has_car_pose, problem))
+            !whole_field("has_car_pose", f[9], 2.0, has_car_pose, problem) ||
+            (f.size() > 10 && !whole_field("facing", f[10], 3.0, facing, problem)))
           return problem;
         if (l.first_frame > l.last_frame)
           return "first_frame " + std::string(f[2]) + " is after last_frame " + std::string(f[3]);
         l.has_car_pose = has_car_pose == 1;
+        l.facing = static_cast<Facing>(facing);
         out.push_back(l);
         return problem;
-      });
+      },
+      "facing");
   if (!read) return read.error();
   return out;
 }

@@ -51,7 +51,9 @@ struct DetectionRecord {
 
 // The ECU's --landmarks-out: the landmarks in its database at the end,
 // label,observations,first_frame,last_frame,x,y,car_x,car_y,car_yaw,has_car_pose
-// (x, y and the car's pose at last_frame in the ECU's odometry frame).
+// and facing (x, y and the car's pose at last_frame in the ECU's odometry
+// frame; facing Facing's value, missing in files written before it was
+// added).
 struct LandmarkRecord {
   Label label = 0;
   std::uint32_t observations = 0;
@@ -60,6 +62,7 @@ struct LandmarkRecord {
   double x = 0.0, y = 0.0;
   double car_x = 0.0, car_y = 0.0, car_yaw = 0.0;
   bool has_car_pose = false;
+  Facing facing = Facing::kAny;  // files written before the column: kAny
 };
 
 // Reports how far a long read has come on stderr: one line per tenth of the
