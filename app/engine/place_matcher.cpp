@@ -112,6 +112,10 @@ bool PlaceMatcher::old_enough(const Landmark& stored, const Landmark& query) con
          stored.t <= query.t - config_.min_separation_s;
 }
 
+bool PlaceMatcher::could_pair(const Landmark& stored, const Landmark& query) const {
+  return old_enough(stored, query) && facings_agree(stored, query);
+}
+
 bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
   if (!enabled() || recent_.empty()) return false;
   const Landmark& newest = recent_.back();
@@ -123,7 +127,7 @@ bool PlaceMatcher::match(const SequenceDatabase& database, MatchEvent& event) {
   database.for_each_landmark_near(newest.label, newest.x, newest.y,
                                   std::max(config_.place_distinct_m, config_.place_search_m), kPerCell,
                                   [&](const Landmark& anchor) {
-                                    if (!old_enough(anchor, newest) || !facings_agree(anchor, newest)) return;
+                                    if (!could_pair(anchor, newest)) return;
                                     ++counters_.hypotheses;
                                     if (found == kMaxHypotheses) {
                                       overflow = true;
@@ -263,7 +267,7 @@ const Landmark* PlaceMatcher::partner(const SequenceDatabase& database, const La
   const Landmark* best = nullptr;
   double best_sq = 0.0;
   database.for_each_landmark_near(query.label, at.x(), at.y(), tolerance, kPerCell, [&](const Landmark& s) {
-    if (!old_enough(s, query) || !facings_agree(s, query)) return;
+    if (!could_pair(s, query)) return;
     for (const Pair& p : h.pairs)
       if (p.stored->id == s.id) return;
     const double d_sq = (point(s) - at).squaredNorm();

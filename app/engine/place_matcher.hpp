@@ -102,6 +102,9 @@ class PlaceMatcher {
   // residual and leaves enough pairs.
   bool fit_pairs(Hypothesis& h) const;
   bool old_enough(const Landmark& stored, const Landmark& query) const;
+  // Whether `stored` may be `query`'s marking seen on an earlier visit: old
+  // enough, and painted the same way.
+  bool could_pair(const Landmark& stored, const Landmark& query) const;
   bool beyond_prior(const Hypothesis& h) const;
   // Mean distance between the paired landmarks: the drift it implies.
   static double apart(const Hypothesis& h);

@@ -62,9 +62,10 @@ class CsvFile {
     std::string_view line;
     const std::string full =
         later.empty() ? std::string(header) : std::string(header) + "," + std::string(later);
-    if (!lines.next(line) || (trim(line) != header && trim(line) != full))
+    const std::string_view given = lines.next(line) ? trim(line) : std::string_view{};
+    if (given != header && given != full)
       return markloop::error(path + ":1: expected the header '" + full + "'");
-    if (trim(line) == full) header = full;
+    if (given == full) header = full;
     const std::size_t columns = split_fields(header).size();
     while (lines.next(line)) {
       if ((lines.number() & 0xFFF) == 0) progress.update(lines.number());
