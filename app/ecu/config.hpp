@@ -59,15 +59,16 @@ struct ObservationGate {
 // frame distance reject look-alike places, loaded places need confirming,
 // a loose match would give a poor relative pose, places close loops where
 // the sequences cannot (turns into old roads, the other direction), visits
-// far apart need a longer run, and landmarks join the chains soon after the
-// car passes them, so that a loop closes within metres of its last marking. k stays at the
+// far apart need a longer run, and landmarks join the chains and places as
+// soon as they have left view, in order, before the car reaches them, so that
+// a loop closes as soon as its last marking is committed. k stays at the
 // engine's: shorter sequences let look-alike city blocks confirm wrong
 // alignments across sessions.
 inline EngineConfig ecu_engine_defaults() {
   EngineConfig c;
   c.tracker.min_observations = 3;
   c.tracker.release_lag_m = 5.0;
-  c.tracker.settled_lag_m = 1.0;
+  c.tracker.settled_lag_m = -20.0;
   c.match.max_residual_m = 0.3;
   c.match.max_drift_rel = 0.02;
   c.match.max_frame_distance_m = 4.0;

@@ -270,11 +270,13 @@ constexpr Setting kSettings[] = {
     {.key = "engine.settled_lag_m",
      .kind = K::kReal,
      .member = member([](auto& c) -> auto& { return c.engine.tracker.settled_lag_m; }),
-     .min = 0.0,
-     .max = 1000.0,
+     .min = -kMaxSettledLag_m,
+     .max = kMaxSettledLag_m,
      .unit = "m",
      .section = S::kEngine,
-     .description = "or sooner, this far past them, once no marking still tracked lies behind them"},
+     .description = "or sooner, this far past them, once no marking still tracked lies behind them; "
+                    "negative: up to this far before the car draws level with them, as soon as they "
+                    "have left view (at most observation.max_range_m ahead)"},
     {.key = "engine.row_width_m",
      .kind = K::kReal,
      .member = member([](auto& c) -> auto& { return c.engine.chain.row_width_m; }),

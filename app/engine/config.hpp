@@ -14,6 +14,7 @@ namespace markloop {
 inline constexpr unsigned kMinSequenceLength = 2;  // kMaxSequenceLength: types.hpp
 inline constexpr unsigned kMaxSkippedRows = 1;
 inline constexpr double kMaxDistanceToleranceRel = 0.1;
+inline constexpr double kMaxSettledLag_m = 1000.0;
 inline constexpr std::size_t kMinDatabaseCapacity = 16;
 inline constexpr std::size_t kMaxDatabaseCapacity = std::size_t{1} << 30;
 
@@ -29,7 +30,8 @@ struct TrackerConfig {
   double release_lag_m = 15.0;
   // Sooner, once the car is this far past them and no marking still tracked
   // lies behind them: the order is then known. At or above release_lag_m it
-  // never comes first.
+  // never comes first. Negative: up to this far before the car draws level
+  // with them, so a loop is sent as soon as its last marking has left view.
   double settled_lag_m = 15.0;
 };
 

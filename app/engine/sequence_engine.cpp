@@ -17,7 +17,7 @@ const char* validate(const EngineConfig& c) {
   const auto finite_non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
   // The messages name the limits of app/engine/config.hpp.
   static_assert(kMinSequenceLength == 2 && kMaxSequenceLength == 10 && kMaxSkippedRows == 1);
-  static_assert(kMaxDistanceToleranceRel == 0.1 && kMinDatabaseCapacity == 16);
+  static_assert(kMaxDistanceToleranceRel == 0.1 && kMinDatabaseCapacity == 16 && kMaxSettledLag_m == 1000.0);
   static_assert(kMaxDatabaseCapacity == std::size_t{1} << 30);
   if (c.chain.k < kMinSequenceLength || c.chain.k > kMaxSequenceLength) return "k must be between 2 and 10";
   if (c.chain.max_skipped_rows > kMaxSkippedRows) return "rows skipped must be 0 or 1";
@@ -25,8 +25,9 @@ const char* validate(const EngineConfig& c) {
     return "association radius must be a positive number of metres";
   if (!finite_positive(c.tracker.commit_after_s)) return "commit delay must be a positive number of seconds";
   if (c.tracker.min_observations < 1) return "minimum observations must be at least 1";
-  if (!finite_non_negative(c.tracker.release_lag_m) || !finite_non_negative(c.tracker.settled_lag_m))
-    return "release lag must be a non-negative number of metres";
+  if (!finite_non_negative(c.tracker.release_lag_m)) return "release lag must be a non-negative number of metres";
+  if (!std::isfinite(c.tracker.settled_lag_m) || std::abs(c.tracker.settled_lag_m) > kMaxSettledLag_m)
+    return "settled lag must be a number of metres between -1000 and 1000";
   if (!finite_non_negative(c.chain.row_width_m)) return "row width must be a non-negative number of metres";
   if (!std::isfinite(c.chain.max_link_m) || c.chain.max_link_m <= c.chain.row_width_m)
     return "maximum link distance must exceed the row width";
@@ -189,12 +190,12 @@ void SequenceEngine::commit_and_release(double now, bool all, MatchSink& sink) {
     for (const Landmark& landmark : committed_) {
       if (!landmark.has_car_pose) {
         // Without a pose there is no odometer to wait for: release at once.
-        release(landmark, sink);
+        release(landmark, all, sink);
         continue;
       }
       if (pending_.full()) {
         ++counters_.pending_overflows;
-        release(pending_[0], sink);
+        release(pending_[0], all, sink);
         pending_.erase_at(0);
       }
       // Insertion sort by station: the list is short and nearly sorted.
@@ -210,15 +211,17 @@ void SequenceEngine::commit_and_release(double now, bool all, MatchSink& sink) {
       std::min(odometer_ - config_.tracker.settled_lag_m, tracker_.lowest_active_station());
   const double released = std::max(odometer_ - config_.tracker.release_lag_m, settled);
   while (!pending_.empty() && (all || pending_[0].station <= released)) {
-    release(pending_[0], sink);
+    release(pending_[0], all, sink);
     pending_.erase_at(0);
   }
 }
 
-void SequenceEngine::release(Landmark landmark, MatchSink& sink) {
+void SequenceEngine::release(Landmark landmark, bool flushing, MatchSink& sink) {
   bool may_match = true;
   if (landmark.has_car_pose) {
-    may_match = represent_by_passing_frame(landmark);
+    // One released before the car reaches it (a negative settled lag) has
+    // left view: it is final. One flushed ahead may still have been in view.
+    may_match = represent_by_passing_frame(landmark) || !flushing;
     if (!may_match) ++counters_.landmarks_flushed_ahead;
   } else {
     // No odometry: the travelled distance is the path through the markings.

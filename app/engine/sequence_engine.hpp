@@ -135,10 +135,11 @@ class SequenceEngine {
 
   void commit_and_release(double now, bool all, MatchSink& sink);
   void remember_frame(const FrameInput& frame);
-  // Makes the frame in which the car came closest to the landmark the one
-  // that represents it; false if the car has not reached it yet.
+  // Makes the frame in which the car came closest to the landmark so far the
+  // one that represents it; false if the car has not reached it yet.
   bool represent_by_passing_frame(Landmark& landmark);
-  void release(Landmark landmark, MatchSink& sink);
+  // `flushing`: released by flush() or break_chains(), not in order.
+  void release(Landmark landmark, bool flushing, MatchSink& sink);
   // Stores the sequences ending at `id`; looks for their matches first when
   // `may_match`. True when one matched.
   bool chain(LandmarkId id, bool may_match, MatchSink& sink);

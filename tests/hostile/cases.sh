@@ -164,7 +164,7 @@ ecu_cases() {
     [[ " ${ints//$'\n'/ } " == *" $key "* ]] && values+=" 2147483648"
     for v in $values; do
       e=reject
-      [ "$v" = -1 ] && [[ " camera.input realtime.cpu " == *" $key "* ]] && e=ok
+      [ "$v" = -1 ] && [[ " camera.input realtime.cpu engine.settled_lag_m " == *" $key "* ]] && e=ok
       [ "$v" = 2147483648 ] && [[ " file.first_frame file.frames " == *" $key "* ]] && e=ok
       C name="ecu.key.$key=$v" prog=ecu expect=$e mention="$key" cmd="\$ECU --set $key=$v --print-config"
     done

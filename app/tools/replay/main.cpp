@@ -77,7 +77,8 @@ engine (each value must lie in the range given):
   --release-lag M        landmarks enter the chains once the car is this far
                          past them, 0 to 1000 m; default 15
   --settled-lag M        ... or sooner, this far past them once no marking
-                         still tracked lies behind them, 0 to 1000 m;
+                         still tracked lies behind them, -1000 to 1000 m
+                         (negative: before the car draws level with them);
                          default 15
   --place N              place matching beside the sequences: N recent
                          landmarks agreeing in any order with those stored
@@ -269,7 +270,7 @@ constexpr NumericOption kNumericOptions[] = {
      {0.0, 1000.0, "metres", false},
      [](Options& o, double v) { o.engine.tracker.release_lag_m = v; }},
     {"--settled-lag",
-     {0.0, 1000.0, "metres", false},
+     {-kMaxSettledLag_m, kMaxSettledLag_m, "metres", false},
      [](Options& o, double v) { o.engine.tracker.settled_lag_m = v; }},
     {"--place",
      {0, kMaxSequenceLength, "", true},
