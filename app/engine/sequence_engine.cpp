@@ -25,7 +25,8 @@ const char* validate(const EngineConfig& c) {
     return "association radius must be a positive number of metres";
   if (!finite_positive(c.tracker.commit_after_s)) return "commit delay must be a positive number of seconds";
   if (c.tracker.min_observations < 1) return "minimum observations must be at least 1";
-  if (!finite_non_negative(c.tracker.release_lag_m)) return "release lag must be a non-negative number of metres";
+  if (!finite_non_negative(c.tracker.release_lag_m))
+    return "release lag must be a non-negative number of metres";
   if (!std::isfinite(c.tracker.settled_lag_m) || std::abs(c.tracker.settled_lag_m) > kMaxSettledLag_m)
     return "settled lag must be a number of metres between -1000 and 1000";
   if (!finite_non_negative(c.chain.row_width_m)) return "row width must be a non-negative number of metres";

@@ -251,6 +251,55 @@ TEST_CASE("a landmark settled early waits for a marking still tracked behind it"
   CHECK(order[1].second == 36.0);
 }
 
+TEST_CASE("with a negative settled lag a loop is sent before the car reaches its last marking", "[engine]") {
+  // Markings about 20 m apart, each of its own label and seen from 20 to
+  // 12 m ahead only (two lanes over): committed half a second later, still
+  // metres ahead of the car. The road is driven twice; the drive ends with
+  // one marking in view.
+  const auto first_match = [](double settled_lag_m, std::uint64_t& flushed_ahead) {
+    EngineConfig config;
+    config.chain.k = 3;
+    config.match.min_separation_s = 0;
+    config.tracker.settled_lag_m = settled_lag_m;
+    SequenceEngine engine(config);
+    Collector sink;
+    FrameIndex frame = 0;
+    constexpr double kNone = 1e9;
+    double car_at_first_match = kNone;
+    for (int pass = 0; pass < 2; ++pass) {
+      for (double car = 0; car < (pass == 0 ? 260.0 : 183.0); car += 1.0) {
+        std::vector<Observation> seen;
+        for (int row = 0; row < 11; ++row) {
+          const double x = 30.0 + row * 20.0 + (row % 3) * 4.0;
+          if (x - car >= 12.0 && x - car <= 20.0)
+            seen.push_back({static_cast<Label>(row), static_cast<float>(x), 4.0f});
+        }
+        engine.process_frame({frame, frame / 10.0, true, {car, 0.0, 0.0}}, seen, sink);
+        ++frame;
+        REQUIRE((pass == 1 || sink.events.empty()));
+        if (pass == 1 && car_at_first_match == kNone && !sink.events.empty()) {
+          const MatchEvent& e = sink.events.front();
+          CHECK(e.query[e.k - 1].x == e.match[e.k - 1].x);
+          // Represented by the frame closest to it so far.
+          CHECK(e.query[e.k - 1].car_x == Catch::Approx(std::min(car, double{e.query[e.k - 1].x})));
+          car_at_first_match = car - e.query[e.k - 1].x;
+        }
+      }
+      if (pass == 0) engine.break_chains(sink);
+    }
+    const std::size_t before_flush = sink.events.size();
+    engine.flush(sink);
+    CHECK(sink.events.size() == before_flush);  // the marking still in view is not queried
+    flushed_ahead = engine.counters().landmarks_flushed_ahead;
+    return car_at_first_match;
+  };
+  std::uint64_t flushed_ahead = 0;
+  CHECK(first_match(-20.0, flushed_ahead) == Catch::Approx(-6.0));
+  CHECK(flushed_ahead == 1u);
+  CHECK(first_match(1.0, flushed_ahead) == Catch::Approx(1.0));
+  CHECK(flushed_ahead == 1u);
+}
+
 TEST_CASE("the engine rejects bad configurations", "[engine]") {
   EngineConfig config;
   CHECK(validate(config) == nullptr);
@@ -269,6 +318,13 @@ TEST_CASE("the engine rejects bad configurations", "[engine]") {
   CHECK(validate(config) == nullptr);
   config = {};
   config.match.max_frame_distance_m = -1.0;
+  CHECK(validate(config) != nullptr);
+  config = {};
+  config.tracker.settled_lag_m = -20.0;
+  CHECK(validate(config) == nullptr);
+  config.tracker.settled_lag_m = -1001.0;
+  CHECK(validate(config) != nullptr);
+  config.tracker.settled_lag_m = std::nan("");
   CHECK(validate(config) != nullptr);
 }
 
