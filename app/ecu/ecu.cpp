@@ -201,7 +201,7 @@ void Ecu::on_match(const MatchEvent& event) {
   // QueryTime is the capture time of the frame whose processing completed the
   // detection, so that (send stamp - QueryTime) is the end-to-end latency.
   message.query_time_s = seconds(current_frame_time_);
-  message.match_time_s = std::max(0.0, event.match[k - 1].t);  // a loaded map's past: 0
+  message.match_time_s = std::max(0.0, event.match[event.framed].t);  // a loaded map's past: 0
   message.pose_valid = event.has_relative_pose;
   message.pose_dx_m = event.relative_pose.x;
   message.pose_dy_m = event.relative_pose.y;

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <optional>
 
 #include "app/common/units.hpp"
@@ -84,6 +83,11 @@ void PlaceMatcher::remember(const Landmark& landmark) {
   (void)recent_.push_back(landmark);
   ++label_counts_[landmark.label % kLabelBuckets];
   ++landmarks_seen_;
+}
+
+void PlaceMatcher::set_frame(const Landmark& passed) {
+  for (Landmark& l : recent_)
+    if (l.id == passed.id) copy_frame(passed, l);
 }
 
 double PlaceMatcher::evidence_bits(const Hypothesis& h) const {
@@ -477,33 +481,14 @@ bool PlaceMatcher::seen_recently(Label label, const Eigen::Vector2d& p) const {
   return false;
 }
 
-std::size_t PlaceMatcher::closest_cars(const Hypothesis& h) {
-  // An intersection approached from two directions: the cars pass one
-  // crosswalk a street's width apart, another side by side.
-  std::size_t closest = 0;
-  double closest_sq = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < h.pairs.size(); ++i) {
-    const std::optional<Pose2> relative =
-        relative_car_pose(h.fit.transform, *h.pairs[i].query, *h.pairs[i].stored);
-    if (!relative) continue;
-    const double d_sq = relative->x * relative->x + relative->y * relative->y;
-    if (d_sq < closest_sq) closest = i, closest_sq = d_sq;
-  }
-  return closest;
-}
-
 void PlaceMatcher::fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const {
-  // Oldest query landmark first, as a sequence's; last the pair whose two
-  // cars were closest, so that the loop names frames at one place.
+  // Oldest query landmark first, as a sequence's. The loop names the frames
+  // of the pair whose cars were closest (SequenceEngine::framed_pair).
   std::array<Pair, kMaxSequenceLength> ordered{};
   const std::size_t n = h.pairs.size();
-  const std::size_t last = closest_cars(h);
-  std::size_t m = 0;
-  for (std::size_t i = 0; i < n; ++i)
-    if (i != last) ordered[m++] = h.pairs[i];
-  std::sort(ordered.begin(), ordered.begin() + static_cast<std::ptrdiff_t>(n - 1),
+  std::copy(h.pairs.begin(), h.pairs.end(), ordered.begin());
+  std::sort(ordered.begin(), ordered.begin() + static_cast<std::ptrdiff_t>(n),
             [](const Pair& a, const Pair& b) { return a.query->station < b.query->station; });
-  ordered[n - 1] = h.pairs[last];
   event = MatchEvent{};
   event.k = static_cast<unsigned>(n);
   for (std::size_t i = 0; i < n; ++i) {

@@ -63,6 +63,9 @@ class PlaceMatcher {
   // A landmark just released (stored under its id); older ones beyond the
   // window are forgotten.
   void remember(const Landmark& landmark);
+  // A remembered landmark's frame, set once the car has passed it
+  // (SequenceDatabase::set_frame).
+  void set_frame(const Landmark& passed);
   // The car's pose in a frame, at `odometer` metres driven: where it looked.
   void remember_pose(const Pose2& pose, double odometer);
   // The pose was lost: the recent landmarks no longer share a frame.
@@ -112,8 +115,6 @@ class PlaceMatcher {
   bool plausible(const Hypothesis& h) const;
   // Whether two hypotheses' anchors are different places, not two visits of one.
   bool disagree(const Hypothesis& a, const Hypothesis& b) const;
-  // The pair whose two cars' poses, aligned, lie closest together.
-  static std::size_t closest_cars(const Hypothesis& h);
   void fill(const Hypothesis& h, unsigned verified, MatchEvent& event) const;
   // Sum over the pairs of -log2 of their label's share of the landmarks seen.
   double evidence_bits(const Hypothesis& h) const;

@@ -134,6 +134,12 @@ const Landmark* SequenceDatabase::landmark(LandmarkId id) const {
   return &landmarks_[id & landmark_mask_];
 }
 
+bool SequenceDatabase::set_frame(const Landmark& passed) {
+  if (passed.id < oldest_landmark_id_ || passed.id >= next_landmark_id_) return false;
+  copy_frame(passed, landmarks_[passed.id & landmark_mask_]);
+  return true;
+}
+
 bool SequenceDatabase::shape_of(std::span<const LandmarkId> ids, SequenceShape& shape) const {
   if (ids.size() != k_) return false;
   shape.k = k_;

@@ -94,6 +94,10 @@ class SequenceDatabase {
   LandmarkId add_landmark(const Landmark& landmark);
   // nullptr when the id was never stored or has been evicted.
   const Landmark* landmark(LandmarkId id) const;
+  // Gives the stored landmark of `passed.id` the frame, time, car pose and
+  // facing of `passed` (its position, label and station stay: the index
+  // holds them). False when it has been evicted.
+  bool set_frame(const Landmark& passed);
 
   // Calls visit(const Landmark&) for live landmarks of `label` whose position
   // lies within `radius_m` of (x, y), newest first within each ground cell;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 
@@ -104,6 +105,7 @@ void SequenceEngine::process_frame(const FrameInput& frame, std::span<const Obse
     have_previous_pose_ = true;
     remember_frame(frame);
     if (places_.enabled()) places_.remember_pose(frame.pose, odometer_);
+    represent_passed_landmarks();
   }
   tracker_.observe(frame, odometer_,
                    observations.first(std::min(observations.size(), kMaxObservationsPerFrame)));
@@ -172,6 +174,23 @@ bool SequenceEngine::represent_by_passing_frame(Landmark& landmark) {
   return passed;
 }
 
+void SequenceEngine::represent_passed_landmarks() {
+  for (std::size_t i = 0; i < unpassed_.size();) {
+    const Landmark* stored = database_.landmark(unpassed_[i]);
+    if (stored != nullptr && odometer_ < stored->station + kPassedBy_m) {
+      ++i;
+      continue;
+    }
+    if (stored != nullptr) {
+      Landmark passed = *stored;
+      (void)represent_by_passing_frame(passed);
+      (void)database_.set_frame(passed);
+      places_.set_frame(passed);
+    }
+    unpassed_.erase_at(i);
+  }
+}
+
 void SequenceEngine::flush(MatchSink& sink) {
   commit_and_release(last_t_, true, sink);
 }
@@ -180,6 +199,7 @@ void SequenceEngine::break_chains(MatchSink& sink) {
   flush(sink);
   rows_.clear();
   places_.forget();
+  unpassed_.clear();  // the frames to come are not on the same path
   have_previous_pose_ = false;
   ++counters_.chain_breaks;
 }
@@ -218,11 +238,12 @@ void SequenceEngine::commit_and_release(double now, bool all, MatchSink& sink) {
 }
 
 void SequenceEngine::release(Landmark landmark, bool flushing, MatchSink& sink) {
-  bool may_match = true;
+  bool may_match = true, passed = true;
   if (landmark.has_car_pose) {
     // One released before the car reaches it (a negative settled lag) has
     // left view: it is final. One flushed ahead may still have been in view.
-    may_match = represent_by_passing_frame(landmark) || !flushing;
+    passed = represent_by_passing_frame(landmark);
+    may_match = passed || !flushing;
     if (!may_match) ++counters_.landmarks_flushed_ahead;
   } else {
     // No odometry: the travelled distance is the path through the markings.
@@ -230,6 +251,12 @@ void SequenceEngine::release(Landmark landmark, bool flushing, MatchSink& sink) 
         have_released_ ? last_released_.station + planar_distance(landmark, last_released_) : 0.0;
   }
   const LandmarkId id = database_.add_landmark(landmark);
+  if (!passed && !flushing) {
+    // Released ahead of the car; more than kMaxPending such landmarks at once
+    // are more than the tracker holds: the oldest keeps the frame it has.
+    if (unpassed_.full()) unpassed_.erase_at(0);
+    (void)unpassed_.push_back(id);
+  }
   ++counters_.landmarks_released;
   last_released_ = landmark;
   have_released_ = true;
@@ -254,8 +281,9 @@ void SequenceEngine::release(Landmark landmark, bool flushing, MatchSink& sink) 
 
 void SequenceEngine::match_place(MatchSink& sink) {
   if (!places_.enabled() || !places_.match(database_, best_)) return;
-  set_relative_pose(best_);
-  if (frames_too_far_apart(best_.has_relative_pose ? std::optional(best_.relative_pose) : std::nullopt)) {
+  set_relative_pose(best_, Framing::kClosestCars);
+  if (frames_too_far_apart(
+          frames_apart(best_.alignment, best_.query[best_.framed], best_.match[best_.framed]))) {
     ++counters_.candidates_rejected_frames_apart;
     return;
   }
@@ -452,15 +480,17 @@ void SequenceEngine::measure_candidate(const Query& query, std::span<const Landm
 
 bool SequenceEngine::frames_too_far_apart(const Query& query, const Candidate& candidate) const {
   if (config_.match.max_frame_distance_m <= 0.0) return false;
-  const unsigned k = config_.chain.k;
-  return frames_too_far_apart(
-      relative_car_pose(candidate.fit.transform, query.last(), *database_.landmark(candidate.ids[k - 1])));
+  // Any pair's frames will do (framed_pair names them).
+  for (unsigned i = 0; i < config_.chain.k; ++i)
+    if (!frames_too_far_apart(
+            frames_apart(candidate.fit.transform, query.landmarks[i], *database_.landmark(candidate.ids[i]))))
+      return false;
+  return true;
 }
 
-bool SequenceEngine::frames_too_far_apart(const std::optional<Pose2>& relative) const {
-  // The loop's two frames, as far apart as its relative pose says.
+bool SequenceEngine::frames_too_far_apart(const std::optional<double>& apart_m) const {
   const double limit = config_.match.max_frame_distance_m;
-  return limit > 0.0 && relative && std::hypot(relative->x, relative->y) > limit;
+  return limit > 0.0 && apart_m && *apart_m > limit;
 }
 
 bool SequenceEngine::accept_into_loaded_map(const Query& query, const Candidate& candidate) {
@@ -618,9 +648,32 @@ void SequenceEngine::keep_if_best(const Candidate& candidate, bool& found, Match
   best.score = score_of(candidate);
 }
 
-void SequenceEngine::set_relative_pose(MatchEvent& event) const {
+unsigned SequenceEngine::framed_pair(const MatchEvent& event, Framing framing) const {
+  // The newest pair's frames lie apart when its query landmark was released
+  // before the car reached it and the stored one was passed: then, as for a
+  // place always, the pair whose cars, aligned, lie closest (newest first).
+  const auto apart = [&](unsigned pair) {
+    return frames_apart(event.alignment, event.query[pair], event.match[pair])
+        .value_or(std::numeric_limits<double>::infinity());
+  };
+  unsigned best = event.k - 1;
+  if (framing == Framing::kNewest && !frames_too_far_apart(apart(best))) return best;
+  for (unsigned i = event.k - 1; i-- > 0;)
+    if (apart(i) < apart(best)) best = i;
+  return best;
+}
+
+std::optional<double> SequenceEngine::frames_apart(const Pose2& alignment, const Landmark& query,
+                                                   const Landmark& match) {
+  const std::optional<Pose2> relative = relative_car_pose(alignment, query, match);
+  if (!relative) return std::nullopt;
+  return std::hypot(relative->x, relative->y);
+}
+
+void SequenceEngine::set_relative_pose(MatchEvent& event, Framing framing) const {
+  event.framed = framed_pair(event, framing);
   const std::optional<Pose2> relative =
-      relative_car_pose(event.alignment, event.query[event.k - 1], event.match[event.k - 1]);
+      relative_car_pose(event.alignment, event.query[event.framed], event.match[event.framed]);
   event.has_relative_pose = relative.has_value();
   if (relative) event.relative_pose = *relative;
 }

@@ -34,9 +34,12 @@ struct MatchEvent {
   // Rigid transform taking the matched landmarks' world positions onto the
   // query's: the drift accumulated between the two visits.
   Pose2 alignment{};
-  // The car's pose at the query's last landmark, expressed in the car's frame
-  // at the match's last landmark, after correcting by `alignment`: the loop
-  // closure constraint a pose graph needs. Only when both poses are known.
+  // The pair whose two frames the loop names: the newest whose query
+  // landmark the car has passed (a place's: whose cars lay closest).
+  unsigned framed = 0;
+  // The car's pose in the query's framed frame, expressed in the car's frame
+  // in the match's, after correcting by `alignment`: the loop closure
+  // constraint a pose graph needs. Only when both poses are known.
   bool has_relative_pose = false;
   Pose2 relative_pose{};
   double residual_m = 0.0;  // RMS of the aligned landmark positions
@@ -46,8 +49,8 @@ struct MatchEvent {
   double score = 0.0;  // 1 = distances agree exactly, 0 = at tolerance
   unsigned verified_candidates = 0;
 
-  FrameIndex query_frame() const { return query[k - 1].last_frame; }
-  FrameIndex match_frame() const { return match[k - 1].last_frame; }
+  FrameIndex query_frame() const { return query[framed].last_frame; }
+  FrameIndex match_frame() const { return match[framed].last_frame; }
 };
 
 class MatchSink {
@@ -138,6 +141,9 @@ class SequenceEngine {
   // Makes the frame in which the car came closest to the landmark so far the
   // one that represents it; false if the car has not reached it yet.
   bool represent_by_passing_frame(Landmark& landmark);
+  // Landmarks released before the car reached them get their frame of
+  // closest approach once it has passed them.
+  void represent_passed_landmarks();
   // `flushing`: released by flush() or break_chains(), not in order.
   void release(Landmark landmark, bool flushing, MatchSink& sink);
   // Stores the sequences ending at `id`; looks for their matches first when
@@ -151,7 +157,16 @@ class SequenceEngine {
   // keeps the one that fits best.
   bool match(std::span<const LandmarkId> query, const SequenceShape& shape, bool over_skipped_row,
              MatchEvent& best);
-  void set_relative_pose(MatchEvent& event) const;
+  // Which pair's frames a loop names: a sequence's newest, unless they lie
+  // too far apart; a place's whose cars were closest (an intersection
+  // approached from two directions: the cars pass one crosswalk a street's
+  // width apart, another side by side).
+  enum class Framing { kNewest, kClosestCars };
+  void set_relative_pose(MatchEvent& event, Framing framing = Framing::kNewest) const;
+  unsigned framed_pair(const MatchEvent& event, Framing framing) const;
+  // How far apart the two cars lie, aligned; none without their poses.
+  static std::optional<double> frames_apart(const Pose2& alignment, const Landmark& query,
+                                            const Landmark& match);
   // When `event` continues the previous closure (its sequences overlap the
   // previous ones but for one row), refits its alignment on every pair of the
   // run: k points nearly in a line along the road leave the rotation, and so
@@ -192,7 +207,7 @@ class SequenceEngine {
   bool frames_too_far_apart(const Query& query, const Candidate& candidate) const;
   // A loop's two frames further apart than max_frame_distance_m by its
   // relative pose (none: unknown, not too far).
-  bool frames_too_far_apart(const std::optional<Pose2>& relative) const;
+  bool frames_too_far_apart(const std::optional<double>& apart_m) const;
   // A candidate in a loaded map (no odometry prior): true once it continues
   // a verified sequence and its alignment is confirmed.
   bool accept_into_loaded_map(const Query& query, const Candidate& candidate);
@@ -227,8 +242,9 @@ class SequenceEngine {
   Pose2 previous_pose_{};
   double last_t_ = 0.0;
 
-  FixedVector<Landmark, kMaxPending> committed_;  // scratch for the tracker
-  FixedVector<Landmark, kMaxPending> pending_;    // sorted by station
+  FixedVector<Landmark, kMaxPending> committed_;   // scratch for the tracker
+  FixedVector<Landmark, kMaxPending> pending_;     // sorted by station
+  FixedVector<LandmarkId, kMaxPending> unpassed_;  // released ahead of the car
   bool have_released_ = false;
   Landmark last_released_{};
 
@@ -245,6 +261,9 @@ class SequenceEngine {
   static constexpr std::size_t kFrameHistory = 1024;
   // The closest approach is looked for this far either side of the station.
   static constexpr double kPassingWindow_m = 10.0;
+  // A landmark released ahead of the car is given its frame of closest
+  // approach once the car is this far past its station.
+  static constexpr double kPassedBy_m = 2.0;
   std::array<PassingFrame, kFrameHistory> history_{};
   std::size_t history_oldest_ = 0;
   std::size_t history_size_ = 0;

@@ -28,6 +28,15 @@ std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& q
   return compose(inverse(compose(alignment, match_car)), query_car);
 }
 
+void copy_frame(const Landmark& passed, Landmark& landmark) {
+  landmark.last_frame = passed.last_frame;
+  landmark.t = passed.t;
+  landmark.car_x = passed.car_x;
+  landmark.car_y = passed.car_y;
+  landmark.car_yaw = passed.car_yaw;
+  landmark.facing = passed.facing;
+}
+
 std::optional<double> facing_yaw(const Landmark& landmark) {
   if (landmark.facing == Facing::kAny || !landmark.has_car_pose) return std::nullopt;
   return landmark.facing == Facing::kAlong ? double(landmark.car_yaw)

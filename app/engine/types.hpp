@@ -82,6 +82,10 @@ struct Landmark {
 // onto the query's; none when either car's pose is unknown.
 std::optional<Pose2> relative_car_pose(const Pose2& alignment, const Landmark& query, const Landmark& match);
 
+// Gives `landmark` the frame that represents `passed` (the same marking):
+// its frame, time, car pose and facing.
+void copy_frame(const Landmark& passed, Landmark& landmark);
+
 // The direction on the ground a landmark's marking is painted for, in its
 // world frame; none when it has no facing or no car pose.
 std::optional<double> facing_yaw(const Landmark& landmark);

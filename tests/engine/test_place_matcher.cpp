@@ -392,7 +392,7 @@ TEST_CASE("a place met from a cross street names the frames where the cars were 
   const MatchEvent& e = car.sink.events[0];
   const Point q = car.trail()[e.query_frame()], m = car.trail()[e.match_frame()];
   CHECK(std::hypot(q.x - m.x, q.y - m.y) < 2.0);
-  CHECK(e.query[e.k - 1].label == 15);
+  CHECK(e.query[e.framed].label == 15);
 }
 
 TEST_CASE("a place repeated nearby is never a loop", "[engine][place]") {

@@ -251,7 +251,10 @@ TEST_CASE("a landmark settled early waits for a marking still tracked behind it"
   CHECK(order[1].second == 36.0);
 }
 
-TEST_CASE("with a negative settled lag a loop is sent before the car reaches its last marking", "[engine]") {
+TEST_CASE(
+    "with a negative settled lag a loop is sent before the car reaches its last marking, and names the "
+    "frames of a marking passed",
+    "[engine]") {
   // Markings about 20 m apart, each of its own label and seen from 20 to
   // 12 m ahead only (two lanes over): committed half a second later, still
   // metres ahead of the car. The road is driven twice; the drive ends with
@@ -260,6 +263,7 @@ TEST_CASE("with a negative settled lag a loop is sent before the car reaches its
     EngineConfig config;
     config.chain.k = 3;
     config.match.min_separation_s = 0;
+    config.match.max_frame_distance_m = 4.0;
     config.tracker.settled_lag_m = settled_lag_m;
     SequenceEngine engine(config);
     Collector sink;
@@ -280,8 +284,18 @@ TEST_CASE("with a negative settled lag a loop is sent before the car reaches its
         if (pass == 1 && car_at_first_match == kNone && !sink.events.empty()) {
           const MatchEvent& e = sink.events.front();
           CHECK(e.query[e.k - 1].x == e.match[e.k - 1].x);
-          // Represented by the frame closest to it so far.
+          // Represented by the frame closest to it so far...
           CHECK(e.query[e.k - 1].car_x == Catch::Approx(std::min(car, double{e.query[e.k - 1].x})));
+          // ...the stored one by the frame level with it, once passed. The
+          // newest pair's frames, 6 m apart, are beyond the frames-apart
+          // limit: the loop names the pair whose cars were closest.
+          CHECK(e.match[e.k - 1].car_x == Catch::Approx(e.match[e.k - 1].x));
+          const unsigned framed = car < e.query[e.k - 1].x ? e.k - 2 : e.k - 1;
+          CHECK(e.framed == framed);
+          CHECK(e.query_frame() == e.query[framed].last_frame);
+          CHECK(e.query[framed].car_x == Catch::Approx(e.query[framed].x));
+          REQUIRE(e.has_relative_pose);
+          CHECK(std::hypot(e.relative_pose.x, e.relative_pose.y) < 1e-6);
           car_at_first_match = car - e.query[e.k - 1].x;
         }
       }
