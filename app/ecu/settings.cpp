@@ -349,11 +349,12 @@ constexpr Setting kSettings[] = {
      .max = 1.0e6,
      .unit = "m",
      .section = S::kEngine,
-     .description = "largest distance between a loop's two frames (the closest approach to the last "
-                    "marking on each visit) by its relative pose; 0: no limit. Where the routes part "
-                    "just before that marking, the markings agree but the frames do not. A metre "
-                    "under the 5 m a loop promises: the relative pose itself is off by up to half a "
-                    "metre where the car turns"},
+     .description = "largest distance between a loop's two frames (where the car passed one of its "
+                    "markings on each visit: the last, or else the one whose frames lie closest) by "
+                    "its relative pose; 0: no limit, the last marking's. Where the routes part just "
+                    "before the markings, they agree but the frames do not. A metre under the 5 m a "
+                    "loop promises: the relative pose itself is off by up to half a metre where the "
+                    "car turns"},
     {.key = "engine.max_drift_rel",
      .kind = K::kReal,
      .member = member([](auto& c) -> auto& { return c.engine.match.max_drift_rel; }),

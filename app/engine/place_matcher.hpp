@@ -66,6 +66,8 @@ class PlaceMatcher {
   // A remembered landmark's frame, set once the car has passed it
   // (SequenceDatabase::set_frame).
   void set_frame(const Landmark& passed);
+  // The id of the newest remembered landmark; kNoLandmark when none.
+  LandmarkId newest() const { return recent_.empty() ? kNoLandmark : recent_.back().id; }
   // The car's pose in a frame, at `odometer` metres driven: where it looked.
   void remember_pose(const Pose2& pose, double odometer);
   // The pose was lost: the recent landmarks no longer share a frame.

@@ -105,7 +105,7 @@ void SequenceEngine::process_frame(const FrameInput& frame, std::span<const Obse
     have_previous_pose_ = true;
     remember_frame(frame);
     if (places_.enabled()) places_.remember_pose(frame.pose, odometer_);
-    represent_passed_landmarks();
+    represent_passed_landmarks(sink);
   }
   tracker_.observe(frame, odometer_,
                    observations.first(std::min(observations.size(), kMaxObservationsPerFrame)));
@@ -174,7 +174,7 @@ bool SequenceEngine::represent_by_passing_frame(Landmark& landmark) {
   return passed;
 }
 
-void SequenceEngine::represent_passed_landmarks() {
+void SequenceEngine::represent_passed_landmarks(MatchSink& sink) {
   for (std::size_t i = 0; i < unpassed_.size();) {
     const Landmark* stored = database_.landmark(unpassed_[i]);
     if (stored != nullptr && odometer_ < stored->station + kPassedBy_m) {
@@ -186,7 +186,9 @@ void SequenceEngine::represent_passed_landmarks() {
       (void)represent_by_passing_frame(passed);
       (void)database_.set_frame(passed);
       places_.set_frame(passed);
+      if (passed.id == place_retry_ && places_.newest() == passed.id) (void)match_place(sink);
     }
+    if (unpassed_[i] == place_retry_) place_retry_ = kNoLandmark;
     unpassed_.erase_at(i);
   }
 }
@@ -200,6 +202,7 @@ void SequenceEngine::break_chains(MatchSink& sink) {
   rows_.clear();
   places_.forget();
   unpassed_.clear();  // the frames to come are not on the same path
+  place_retry_ = kNoLandmark;
   have_previous_pose_ = false;
   ++counters_.chain_breaks;
 }
@@ -276,20 +279,23 @@ void SequenceEngine::release(Landmark landmark, bool flushing, MatchSink& sink) 
     ++counters_.landmarks_unchained;
   else if (rows_.size() >= chain_config.k)
     matched = chain(id, may_match, sink);
-  if (!matched && may_match) match_place(sink);
+  // A place whose frames lie apart only because the car has not reached its
+  // newest marking yet is tried again once it has (represent_passed_landmarks).
+  if (!matched && may_match && match_place(sink) == PlaceOutcome::kFramesApart && !passed) place_retry_ = id;
 }
 
-void SequenceEngine::match_place(MatchSink& sink) {
-  if (!places_.enabled() || !places_.match(database_, best_)) return;
+SequenceEngine::PlaceOutcome SequenceEngine::match_place(MatchSink& sink) {
+  if (!places_.enabled() || !places_.match(database_, best_)) return PlaceOutcome::kNone;
   set_relative_pose(best_, Framing::kClosestCars);
   if (frames_too_far_apart(
           frames_apart(best_.alignment, best_.query[best_.framed], best_.match[best_.framed]))) {
     ++counters_.candidates_rejected_frames_apart;
-    return;
+    return PlaceOutcome::kFramesApart;
   }
   ++counters_.matches;
   ++counters_.place_matches;
   sink.on_match(best_);
+  return PlaceOutcome::kSent;
 }
 
 bool SequenceEngine::chain(LandmarkId id, bool may_match, MatchSink& sink) {

@@ -34,8 +34,9 @@ struct MatchEvent {
   // Rigid transform taking the matched landmarks' world positions onto the
   // query's: the drift accumulated between the two visits.
   Pose2 alignment{};
-  // The pair whose two frames the loop names: the newest whose query
-  // landmark the car has passed (a place's: whose cars lay closest).
+  // The pair whose two frames the loop names: a sequence's newest, unless
+  // they lie beyond the frames-apart limit; then, and for a place, the pair
+  // whose cars lay closest (SequenceEngine::framed_pair).
   unsigned framed = 0;
   // The car's pose in the query's framed frame, expressed in the car's frame
   // in the match's, after correcting by `alignment`: the loop closure
@@ -143,14 +144,15 @@ class SequenceEngine {
   bool represent_by_passing_frame(Landmark& landmark);
   // Landmarks released before the car reached them get their frame of
   // closest approach once it has passed them.
-  void represent_passed_landmarks();
+  void represent_passed_landmarks(MatchSink& sink);
   // `flushing`: released by flush() or break_chains(), not in order.
   void release(Landmark landmark, bool flushing, MatchSink& sink);
   // Stores the sequences ending at `id`; looks for their matches first when
   // `may_match`. True when one matched.
   bool chain(LandmarkId id, bool may_match, MatchSink& sink);
   // The newest landmark's place, when no sequence matched it.
-  void match_place(MatchSink& sink);
+  enum class PlaceOutcome { kNone, kSent, kFramesApart };
+  PlaceOutcome match_place(MatchSink& sink);
   // Best verified match of one new sequence (`over_skipped_row`: it steps
   // over one of the earlier rows); false when there is none. Each candidate
   // the database proposes goes through verify_candidate(); keep_if_best()
@@ -245,6 +247,9 @@ class SequenceEngine {
   FixedVector<Landmark, kMaxPending> committed_;   // scratch for the tracker
   FixedVector<Landmark, kMaxPending> pending_;     // sorted by station
   FixedVector<LandmarkId, kMaxPending> unpassed_;  // released ahead of the car
+  // The newest landmark, released ahead of the car, whose place was refused
+  // for frames apart; kNoLandmark when none.
+  LandmarkId place_retry_ = kNoLandmark;
   bool have_released_ = false;
   Landmark last_released_{};
 
