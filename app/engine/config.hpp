@@ -75,11 +75,12 @@ struct MatchConfig {
   double max_drift_abs_m = 5.0;
   double max_drift_yaw_abs_deg = 5.0;
   double max_drift_yaw_rel_deg_per_m = 0.01;
-  // The two frames a loop names (the car's closest approach to the last
-  // marking on each visit) lie at most this far apart by the match's own
+  // The two frames a loop names (where the car passed one of its markings
+  // on each visit: the last, or else the one whose frames lie closest;
+  // MatchEvent::framed) lie at most this far apart by the match's own
   // relative pose (0: no limit). Further apart, the routes parted before
-  // that marking: the markings are the same, but the car was not at the
-  // same place, which a loop detection says it was.
+  // the markings: they are the same, but the car was not at the same place,
+  // which a loop detection says it was.
   double max_frame_distance_m = 0.0;
   // Places of a loaded map (an earlier session, whose world frame is
   // unrelated): a match into them is only a hypothesis of how the two
