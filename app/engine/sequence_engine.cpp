@@ -287,8 +287,8 @@ void SequenceEngine::release(Landmark landmark, bool flushing, MatchSink& sink) 
 SequenceEngine::PlaceOutcome SequenceEngine::match_place(MatchSink& sink) {
   if (!places_.enabled() || !places_.match(database_, best_)) return PlaceOutcome::kNone;
   set_relative_pose(best_, Framing::kClosestCars);
-  if (frames_too_far_apart(
-          frames_apart(best_.alignment, best_.query[best_.framed], best_.match[best_.framed]))) {
+  if (best_.has_relative_pose &&
+      frames_too_far_apart(std::hypot(best_.relative_pose.x, best_.relative_pose.y))) {
     ++counters_.candidates_rejected_frames_apart;
     return PlaceOutcome::kFramesApart;
   }
@@ -663,9 +663,10 @@ unsigned SequenceEngine::framed_pair(const MatchEvent& event, Framing framing) c
         .value_or(std::numeric_limits<double>::infinity());
   };
   unsigned best = event.k - 1;
-  if (framing == Framing::kNewest && !frames_too_far_apart(apart(best))) return best;
+  double best_apart = apart(best);
+  if (framing == Framing::kNewest && !frames_too_far_apart(best_apart)) return best;
   for (unsigned i = event.k - 1; i-- > 0;)
-    if (apart(i) < apart(best)) best = i;
+    if (const double a = apart(i); a < best_apart) best = i, best_apart = a;
   return best;
 }
 
